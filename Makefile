@@ -1,0 +1,44 @@
+# Top-level entry points. Every target installs what it needs first (tools/install-deps is quiet when done).
+# Host code builds with CMake+Ninja into build/cmake, binaries into build/bin; the AVR firmware into build/firmware.
+.PHONY: all deps host firmware test bench fuzz demo flash clean
+
+BUILD      := build
+CMAKE_DIR  := $(BUILD)/cmake
+JOBS       ?= 2
+FUZZ_SECONDS ?= 60
+PORT       ?= /dev/ttyACM0
+
+all: host firmware
+
+deps:
+	@tools/install-deps
+
+host: deps
+	@cmake -S . -B $(CMAKE_DIR) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+	@cmake --build $(CMAKE_DIR) -j $(JOBS)
+
+firmware: deps
+	@tools/build-firmware
+
+# ctest runs everything: GoogleTest suites, pytest suites, the protocol harness against both simulators,
+# the fuzz smoke, and the end-to-end pick tests.
+test: host firmware
+	@ctest --test-dir $(CMAKE_DIR) --output-on-failure -j $(JOBS)
+
+bench: host firmware
+	@tools/bench/firmware
+	@tools/bench/perception-speed
+	@tools/bench/perception-accuracy
+	@tools/bench/daemon-latency
+
+fuzz: deps
+	@protocol/fuzz/run $(FUZZ_SECONDS)
+
+demo: host firmware
+	@tools/demo
+
+flash: firmware
+	@tools/flash $(PORT)
+
+clean:
+	rm -rf $(BUILD)

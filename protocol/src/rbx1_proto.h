@@ -1,0 +1,65 @@
+/* rbx1_proto.h - the RBX1 link protocol: framing, CRC, decoder, and message pack/unpack (see PROTOCOL.md).
+ * C99, no heap, fixed buffers; compiled unchanged by avr-gcc for the firmware and by the host toolchain. */
+#ifndef RBX1_PROTO_H
+#define RBX1_PROTO_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define RBX1_PROTO_VERSION 1
+#define RBX1_SYNC 0xA5
+#define RBX1_MAX_PAYLOAD 58
+#define RBX1_FRAME_OVERHEAD 6
+#define RBX1_MAX_FRAME (RBX1_MAX_PAYLOAD + RBX1_FRAME_OVERHEAD)
+#define RBX1_JOINTS 6
+#define RBX1_RESPONSE(type) ((uint8_t)((type) | 0x80u))
+
+/* Message ids, status codes, states, bits and config keys: generated from messages.json. */
+#include "rbx1_messages.h"
+
+/* CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, xorout 0); check("123456789") = 0x29B1. */
+uint16_t rbx1_crc16_update(uint16_t crc, uint8_t byte);
+uint16_t rbx1_crc16(const uint8_t *data, size_t n);
+
+/* Writes one frame into out (cap bytes). Returns the frame length, or 0 if len > RBX1_MAX_PAYLOAD or cap is too small. */
+size_t rbx1_frame_encode(uint8_t *out, size_t cap, uint8_t seq, uint8_t type, const uint8_t *payload, uint8_t len);
+
+/* One received, CRC-checked frame. crc identifies it for at-most-once execution. */
+typedef struct {
+  uint8_t seq;
+  uint8_t type;
+  uint8_t len;
+  uint16_t crc;
+  uint8_t payload[RBX1_MAX_PAYLOAD];
+} rbx1_frame;
+
+/* Called for each valid frame, and for each rejected one (status RBX1_BAD_CRC or RBX1_BAD_LENGTH; seq is the
+ * rejected frame's SEQ when its header was read, has_seq says whether it was). */
+typedef void (*rbx1_on_frame)(void *ctx, const rbx1_frame *frame);
+typedef void (*rbx1_on_reject)(void *ctx, uint8_t status, uint8_t seq, uint8_t has_seq);
+
+/* Streaming decoder: resynchronises after garbage and rescans the bytes of a rejected frame. */
+typedef struct {
+  uint8_t buf[RBX1_MAX_FRAME];
+  uint8_t n; /* bytes of the current candidate frame in buf, SYNC included */
+  rbx1_on_frame on_frame;
+  rbx1_on_reject on_reject;
+  void *ctx;
+} rbx1_decoder;
+
+void rbx1_decoder_init(rbx1_decoder *d, rbx1_on_frame on_frame, rbx1_on_reject on_reject, void *ctx);
+/* Feeds received bytes; callbacks run from inside this call, possibly several times. */
+void rbx1_decoder_feed(rbx1_decoder *d, const uint8_t *data, size_t n);
+/* Drops a partial frame (inter-byte timeout). Returns 1 if one was pending. */
+int rbx1_decoder_reset(rbx1_decoder *d);
+/* 1 while a frame has started but not completed. */
+int rbx1_decoder_pending(const rbx1_decoder *d);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
