@@ -1,0 +1,68 @@
+// hal_avr.h - inline AVR versions of the HAL's step-path functions (pins from pins.h), so the step ISR is short.
+#ifndef RBX1_HAL_AVR_H
+#define RBX1_HAL_AVR_H
+#ifdef __AVR__
+
+#include <avr/io.h>
+#include <avr/interrupt.h>
+#include "pins.h"
+
+// Port registers from the port letters of pins.h; constant letters fold to one sbi/cbi or lds/sts.
+#define HAL_PORT(c) (*((c) == 'A' ? &PORTA : (c) == 'B' ? &PORTB : (c) == 'C' ? &PORTC : (c) == 'D' ? &PORTD : \
+  (c) == 'E' ? &PORTE : (c) == 'F' ? &PORTF : (c) == 'G' ? &PORTG : (c) == 'H' ? &PORTH : (c) == 'J' ? &PORTJ : \
+  (c) == 'K' ? &PORTK : &PORTL))
+#define HAL_DDR(c) (*((c) == 'A' ? &DDRA : (c) == 'B' ? &DDRB : (c) == 'C' ? &DDRC : (c) == 'D' ? &DDRD : \
+  (c) == 'E' ? &DDRE : (c) == 'F' ? &DDRF : (c) == 'G' ? &DDRG : (c) == 'H' ? &DDRH : (c) == 'J' ? &DDRJ : \
+  (c) == 'K' ? &DDRK : &DDRL))
+#define HAL_PINR(c) (*((c) == 'A' ? &PINA : (c) == 'B' ? &PINB : (c) == 'C' ? &PINC : (c) == 'D' ? &PIND : \
+  (c) == 'E' ? &PINE : (c) == 'F' ? &PINF : (c) == 'G' ? &PING : (c) == 'H' ? &PINH : (c) == 'J' ? &PINJ : \
+  (c) == 'K' ? &PINK : &PINL))
+#define HAL_SET(sig) (HAL_PORT(sig##_PORT) |= (uint8_t)(1u << sig##_BIT))
+#define HAL_CLR(sig) (HAL_PORT(sig##_PORT) &= (uint8_t)~(1u << sig##_BIT))
+#define HAL_READ(sig) ((HAL_PINR(sig##_PORT) >> sig##_BIT) & 1u)
+#define HAL_WRITE(sig, v) do { if (v) HAL_SET(sig); else HAL_CLR(sig); } while (0)
+
+// Called from inside the step ISR only (interrupts off), so the read-modify-write of PORTL/PORTK is safe.
+static inline void hal_step_timer_period(uint16_t ticks) { OCR1A = (uint16_t)(ticks - 1u); }
+
+static inline void hal_step_high(uint8_t mask) {
+  if (mask & 0x01) HAL_SET(RBX1_J1_STEP);
+  if (mask & 0x02) HAL_SET(RBX1_J2_STEP);
+  if (mask & 0x04) HAL_SET(RBX1_J3_STEP);
+  if (mask & 0x08) HAL_SET(RBX1_J4_STEP);
+  if (mask & 0x10) HAL_SET(RBX1_J5_STEP);
+  if (mask & 0x20) HAL_SET(RBX1_J6_STEP);
+}
+
+static inline void hal_step_low(void) {
+  HAL_CLR(RBX1_J1_STEP);
+  HAL_CLR(RBX1_J2_STEP);
+  HAL_CLR(RBX1_J3_STEP);
+  HAL_CLR(RBX1_J4_STEP);
+  HAL_CLR(RBX1_J5_STEP);
+  HAL_CLR(RBX1_J6_STEP);
+}
+
+static inline void hal_dir_write(uint8_t positive) {
+  uint8_t m = RBX1_DIR_POSITIVE_LEVEL ? positive : (uint8_t)~positive;
+  HAL_WRITE(RBX1_J1_DIR, m & 0x01);
+  HAL_WRITE(RBX1_J2_DIR, m & 0x02);
+  HAL_WRITE(RBX1_J3_DIR, m & 0x04);
+  HAL_WRITE(RBX1_J4_DIR, m & 0x08);
+  HAL_WRITE(RBX1_J5_DIR, m & 0x10);
+  HAL_WRITE(RBX1_J6_DIR, m & 0x20);
+}
+
+static inline uint8_t hal_limit_inputs(void) {
+  uint8_t m = (uint8_t)(HAL_READ(RBX1_J1_LIMIT) | (HAL_READ(RBX1_J2_LIMIT) << 1) | (HAL_READ(RBX1_J3_LIMIT) << 2) |
+                        (HAL_READ(RBX1_J4_LIMIT) << 3) | (HAL_READ(RBX1_J5_LIMIT) << 4) |
+                        (HAL_READ(RBX1_J6_LIMIT) << 5));
+  return RBX1_LIMIT_TRIGGERED_LEVEL ? m : (uint8_t)(~m & 0x3F);
+}
+
+static inline uint8_t hal_estop_input(void) {
+  return (uint8_t)(HAL_READ(RBX1_ESTOP) == RBX1_ESTOP_ASSERTED_LEVEL);
+}
+
+#endif
+#endif

@@ -1,0 +1,77 @@
+// planner.cpp - coordinated move planning: dominant-joint trapezoid scaled so every joint stays in its limits.
+#include "planner.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "config.h"
+#include "rbx1_proto.h"
+#include "settings.h"
+
+static uint32_t to_fixed(float v) {
+  float f = v * (float)PLAN_V_ONE;
+  if (f < 1.0f) return 1;
+  if (f > 4.0e9f) return 4000000000UL;
+  return (uint32_t)f;
+}
+
+uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6], uint16_t duration_ms) {
+  memset(b, 0, sizeof(*b));
+  b->kind = BLOCK_MOVE;
+  b->duration_ms = duration_ms;
+  memcpy(b->target, target, sizeof(b->target));
+  uint32_t n = 0;
+  for (uint8_t i = 0; i < RBX1_JOINTS; i++) {
+    int64_t d = (int64_t)target[i] - (int64_t)start[i];
+    if (d >= 0x80000000LL || d <= -0x80000000LL) return RBX1_BAD_ARG;
+    if (d > 0) b->dir_positive |= (uint8_t)(1u << i);
+    b->steps[i] = (uint32_t)(d < 0 ? -d : d);
+    if (b->steps[i] > n) n = b->steps[i];
+  }
+  b->n = n;
+  b->planned_ms = duration_ms;
+  if (n == 0) return RBX1_OK;  // nothing to step: the entry is a dwell of duration_ms
+
+  // Dominant-joint limits: joint i moves steps[i]/n as fast as the dominant one, so its own limits scale up.
+  float fn = (float)n, vmax = 1e30f, amax = 1e30f;
+  for (uint8_t i = 0; i < RBX1_JOINTS; i++) {
+    if (b->steps[i] == 0) continue;
+    float r = fn / (float)b->steps[i];
+    float v = (float)SETTING(i, RBX1_KEY_MAX_SPEED) * r, a = (float)SETTING(i, RBX1_KEY_ACCEL) * r;
+    if (v < vmax) vmax = v;
+    if (a < amax) amax = a;
+  }
+  // Fastest profile: cruise at vmax, or a triangle peaking where ramp-up and ramp-down meet (v^2/a = n).
+  float vc = sqrtf(amax * fn);
+  if (vmax < vc) vc = vmax;
+  // Slower when duration_ms asks: solve n/v + v/a = T for the cruise velocity (smaller root).
+  float T = (float)duration_ms * 0.001f;
+  if (T > 0 && fn / vc + vc / amax < T) {
+    float disc = amax * amax * T * T - 4.0f * amax * fn;
+    float v = (amax * T - sqrtf(disc > 0 ? disc : 0)) * 0.5f;
+    if (v < vc) vc = v;
+  }
+  // The first step comes after sqrt(2/a) s, as from rest under constant acceleration; stop from the same rate.
+  float v0 = sqrtf(amax * 0.5f);
+  if (v0 > vc) v0 = vc;
+  float ramp = (vc * vc - v0 * v0) / (2.0f * amax);
+  uint32_t ramp_steps = (uint32_t)(ramp + 0.5f);
+  if (ramp_steps > n / 2) ramp_steps = n / 2;
+  b->accel_until = ramp_steps;
+  b->decel_after = n - ramp_steps;
+  b->v0 = to_fixed(v0);
+  b->vc = to_fixed(vc);
+  float dv = amax * (float)PLAN_V_ONE / (float)PROFILE_TICK_HZ;
+  b->dv = dv < 1.0f ? 1 : (dv > 4.0e9f ? 4000000000UL : (uint32_t)dv);
+  float t_ms = (fn / vc + (vc - v0) * (vc - v0) / (amax * vc)) * 1000.0f;  // ramps from v0, not 0
+  if (t_ms > (float)duration_ms) b->planned_ms = t_ms > 65535.0f ? 65535 : (uint16_t)(t_ms + 0.5f);
+  return RBX1_OK;
+}
+
+void plan_gripper(plan_block *b, uint16_t pulse_us, uint16_t dwell_ms) {
+  memset(b, 0, sizeof(*b));
+  b->kind = BLOCK_GRIPPER;
+  b->pulse_us = pulse_us;
+  b->duration_ms = dwell_ms;
+  b->planned_ms = dwell_ms;
+}

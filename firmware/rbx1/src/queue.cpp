@@ -1,0 +1,84 @@
+// queue.cpp - the motion queue ring buffer (single producer: main loop; single consumer: profile tick).
+#include "queue.h"
+
+#include <string.h>
+
+#include "config.h"
+#include "hal.h"
+
+static plan_block blocks[QUEUE_SIZE];
+static uint8_t head, tail, count;  // count is changed only with interrupts off
+static uint8_t epoch, reserved_epoch;
+static int32_t last_target[6];
+static uint8_t last_target_valid;
+
+void queue_init(void) {
+  head = tail = count = 0;
+  epoch = reserved_epoch = 0;
+  last_target_valid = 0;
+}
+
+uint8_t queue_count(void) {
+  hal_irq_state s = hal_irq_save();
+  uint8_t c = count;
+  hal_irq_restore(s);
+  return c;
+}
+
+uint8_t queue_free(void) { return (uint8_t)(QUEUE_SIZE - queue_count()); }
+
+plan_block *queue_reserve(void) {
+  hal_irq_state s = hal_irq_save();
+  plan_block *b = count < QUEUE_SIZE ? &blocks[head] : 0;
+  reserved_epoch = epoch;
+  hal_irq_restore(s);
+  return b;
+}
+
+uint8_t queue_commit(void) {
+  hal_irq_state s = hal_irq_save();
+  uint8_t ok = reserved_epoch == epoch && count < QUEUE_SIZE;
+  if (ok) {
+    plan_block *b = &blocks[head];
+    if (b->kind == BLOCK_MOVE) {
+      memcpy(last_target, b->target, sizeof(last_target));
+      last_target_valid = 1;
+    }
+    head = (uint8_t)((head + 1) % QUEUE_SIZE);
+    count++;
+  }
+  hal_irq_restore(s);
+  return ok;
+}
+
+void queue_plan_start(int32_t out[6], const int32_t current[6]) {
+  hal_irq_state s = hal_irq_save();
+  if (count > 0 && last_target_valid)
+    memcpy(out, last_target, sizeof(last_target));
+  else
+    memcpy(out, current, sizeof(last_target));
+  hal_irq_restore(s);
+}
+
+plan_block *queue_first(void) { return count ? &blocks[tail] : 0; }
+
+void queue_pop(void) {
+  hal_irq_state s = hal_irq_save();
+  if (count) {
+    tail = (uint8_t)((tail + 1) % QUEUE_SIZE);
+    count--;
+  }
+  hal_irq_restore(s);
+}
+
+void queue_flush(uint8_t keep_first) {
+  hal_irq_state s = hal_irq_save();
+  uint8_t keep = (keep_first && count) ? 1 : 0;
+  count = keep;
+  head = (uint8_t)((tail + keep) % QUEUE_SIZE);
+  epoch++;
+  // A kept entry may be a move: later moves plan from its target.
+  last_target_valid = keep && blocks[tail].kind == BLOCK_MOVE;
+  if (last_target_valid) memcpy(last_target, blocks[tail].target, sizeof(last_target));
+  hal_irq_restore(s);
+}

@@ -1,0 +1,28 @@
+// queue.h - the motion queue: a ring of planned MOVE and GRIPPER entries, filled by the main loop and consumed
+// by the stepper's profile tick. The entry being executed stays in the queue until it completes.
+#ifndef RBX1_QUEUE_H
+#define RBX1_QUEUE_H
+
+#include <stdint.h>
+
+#include "planner.h"
+
+void queue_init(void);
+// Entries waiting or executing.
+uint8_t queue_count(void);
+// Room for new entries (STATUS.queue_free).
+uint8_t queue_free(void);
+// The slot to fill next, or 0 when full. Not visible to the stepper until queue_commit().
+plan_block *queue_reserve(void);
+// Publishes the reserved slot. Returns 0 (and drops it) if the queue was flushed since queue_reserve().
+uint8_t queue_commit(void);
+// Position the next MOVE starts from: the last queued move's target, or `current` when the queue is empty.
+void queue_plan_start(int32_t out[6], const int32_t current[6]);
+// Oldest entry, or 0 (stepper side).
+plan_block *queue_first(void);
+// Removes the oldest entry (stepper side, when it completes).
+void queue_pop(void);
+// Drops entries; keep_first keeps the executing one. Interrupt-safe.
+void queue_flush(uint8_t keep_first);
+
+#endif

@@ -1,0 +1,366 @@
+// stepper.cpp - stepper driver: step pulses from the Timer1 compare interrupt (Bresenham/DDA over a planned
+// block) and the 1 kHz profile tick that ramps the velocity and sequences the queue. Never driven by loop().
+#include "stepper.h"
+
+#include <string.h>
+
+#include "config.h"
+#include "hal.h"
+#include "planner.h"
+#include "queue.h"
+#include "rbx1_proto.h"
+#include "settings.h"
+#include "system.h"
+
+// interval [2 MHz ticks] = STEP_TIMER_HZ / (v / 65536) = ST_K / (v >> 8)
+#define ST_K (STEP_TIMER_HZ * 256UL)
+#define ST_CHUNK 0x8000UL  // intervals above 16 bits are served in chunks of this many ticks
+
+#define ENTRY_NONE 0
+#define ENTRY_QUEUE 1  // a queue entry (move or gripper), completes into moves_done
+#define ENTRY_JOG 2    // a homing jog
+
+// Step-ISR state: touched only by st_step_isr(), or by others with interrupts off while the timer is stopped.
+static struct {
+  int32_t pos[6];
+  int32_t counter[6];  // Bresenham: starts at n-1, minus inc each tick, plus n on a step
+  uint32_t inc[6];     // steps of each joint in this block
+  int8_t delta[6];     // +1 / -1
+  uint32_t n;          // dominant steps
+  uint32_t left;       // dominant steps still to do
+  uint32_t interval;   // current step interval (written by the profile tick)
+  uint32_t wait_rest;  // ticks still to wait before the next step (long intervals)
+  uint8_t running;     // step timer active
+  uint8_t jog_mask;    // limit bit that ends a jog, 0 when not jogging
+  uint8_t jog_level;   // ... when it reads this
+  uint8_t jog_hit;
+  uint8_t estop_seen;  // the step ISR saw the e-stop input (the profile tick latches it, even if brief)
+} st;
+
+// Profile-tick state.
+static struct {
+  uint8_t entry;         // ENTRY_*
+  plan_block *block;     // executing queue entry
+  uint32_t v;            // 16.16 steps/s
+  uint32_t v0, vc, dv, accel_until, decel_after;
+  uint16_t elapsed_ms;   // since the entry started (saturates)
+  uint16_t duration_ms;
+  uint8_t limits_start;  // limit inputs when the motion started: only new triggers are faults
+  uint8_t stopping;      // controlled stop requested
+  int32_t start[6];
+  uint16_t moves_done;
+  uint16_t gripper_us;
+} pf;
+
+void st_init(void) {
+  hal_irq_state s = hal_irq_save();
+  memset(&st, 0, sizeof(st));
+  memset(&pf, 0, sizeof(pf));
+  hal_irq_restore(s);
+}
+
+// Next step in w ticks (w >= 2); long waits are split into 16-bit chunks.
+static inline void schedule(uint32_t w) {
+  if (w > 0xFFFFUL) {
+    st.wait_rest = w - ST_CHUNK;
+    hal_step_timer_period((uint16_t)ST_CHUNK);
+  } else {
+    st.wait_rest = 0;
+    hal_step_timer_period((uint16_t)w);
+  }
+}
+
+// Time budget: at 16 MHz one step tick of 6 joints costs about 300 cycles (~19 us) including entry/exit, i.e.
+// about 50 cycles per step; at the 30 kHz aggregate target (6 joints x 5 kHz) that is 5k x 300 = 1.5 M cycles/s,
+// under 10% of the CPU. The e-stop input is read first, so no pulse leaves after it is seen. The per-block
+// Bresenham increments are precomputed; velocity changes come from the profile tick as a ready interval.
+void st_step_isr(void) {
+  if (st.wait_rest) {
+    schedule(st.wait_rest);
+    return;
+  }
+  if (hal_estop_input()) {  // the profile tick latches the fault and flushes; here only pulses stop
+    hal_step_timer_stop();
+    st.running = 0;
+    st.estop_seen = 1;
+    return;
+  }
+  uint8_t mask = 0, bit = 1;
+  for (uint8_t i = 0; i < 6; i++, bit <<= 1) {
+    int32_t c = st.counter[i] - (int32_t)st.inc[i];
+    if (c < 0) {
+      c += (int32_t)st.n;
+      mask |= bit;
+    }
+    st.counter[i] = c;
+  }
+  hal_step_high(mask);
+  bit = 1;
+  for (uint8_t i = 0; i < 6; i++, bit <<= 1)  // also stretches the pulse past the drivers' 2 us minimum
+    if (mask & bit) st.pos[i] += st.delta[i];
+  st.left--;
+  hal_step_low();
+  if (st.jog_mask && (uint8_t)((hal_limit_inputs() & st.jog_mask) != 0) == st.jog_level) {
+    st.jog_hit = 1;
+    st.left = 0;
+  }
+  if (st.left == 0) {
+    hal_step_timer_stop();
+    st.running = 0;
+    return;
+  }
+  schedule(st.interval);
+}
+
+static uint32_t interval_of(uint32_t v) {
+  uint32_t v8 = v >> 8;
+  if (v8 == 0) v8 = 1;
+  uint32_t i = ST_K / v8;
+  return i < 2 ? 2 : i;
+}
+
+// Loads step-ISR state for n dominant steps (interrupts off, timer stopped) and starts the timer.
+static void start_steps(const uint32_t steps[6], uint8_t dir_positive, uint32_t n, uint32_t v) {
+  uint8_t invert = 0;
+  for (uint8_t i = 0; i < RBX1_JOINTS; i++)
+    if (SETTING(i, RBX1_KEY_INVERT_DIR)) invert |= (uint8_t)(1u << i);
+  hal_irq_state s = hal_irq_save();
+  hal_dir_write((uint8_t)((dir_positive ^ invert) & 0x3F));  // set now; the first step comes one interval later
+  for (uint8_t i = 0; i < RBX1_JOINTS; i++) {
+    st.inc[i] = steps[i];
+    st.counter[i] = (int32_t)(n - 1);
+    st.delta[i] = (dir_positive & (1u << i)) ? 1 : -1;
+  }
+  st.n = n;
+  st.left = n;
+  st.interval = interval_of(v);
+  st.jog_hit = 0;
+  st.running = 1;
+  uint32_t first = st.interval;
+  if (first > 0xFFFFUL) {
+    st.wait_rest = first - ST_CHUNK;
+    first = ST_CHUNK;
+  } else {
+    st.wait_rest = 0;
+  }
+  hal_step_timer_start((uint16_t)first);
+  hal_irq_restore(s);
+}
+
+static void stop_steps(void) {
+  hal_irq_state s = hal_irq_save();
+  hal_step_timer_stop();
+  hal_step_low();
+  st.running = 0;
+  st.wait_rest = 0;
+  hal_irq_restore(s);
+}
+
+static uint8_t steps_running(void) {
+  hal_irq_state s = hal_irq_save();
+  uint8_t r = st.running;
+  hal_irq_restore(s);
+  return r;
+}
+
+void st_abort(void) {
+  hal_irq_state s = hal_irq_save();
+  stop_steps();
+  st.jog_mask = 0;
+  pf.entry = ENTRY_NONE;
+  pf.block = 0;
+  pf.stopping = 0;
+  queue_flush(0);
+  hal_irq_restore(s);
+}
+
+void st_stop(void) {
+  hal_irq_state s = hal_irq_save();
+  queue_flush(pf.entry == ENTRY_QUEUE);
+  pf.stopping = 1;
+  hal_irq_restore(s);
+}
+
+uint8_t st_stopping(void) {
+  hal_irq_state s = hal_irq_save();
+  uint8_t b = pf.stopping;
+  hal_irq_restore(s);
+  return b;
+}
+
+uint8_t st_busy(void) {
+  hal_irq_state s = hal_irq_save();
+  uint8_t b = pf.entry != ENTRY_NONE || st.running;
+  hal_irq_restore(s);
+  return b;
+}
+
+void st_position(int32_t out[6]) {
+  hal_irq_state s = hal_irq_save();
+  memcpy(out, st.pos, sizeof(st.pos));
+  hal_irq_restore(s);
+}
+
+void st_set_position(const int32_t p[6]) {
+  hal_irq_state s = hal_irq_save();
+  memcpy(st.pos, p, sizeof(st.pos));
+  hal_irq_restore(s);
+}
+
+void st_set_joint_position(uint8_t joint, int32_t p) {
+  hal_irq_state s = hal_irq_save();
+  st.pos[joint] = p;
+  hal_irq_restore(s);
+}
+
+uint16_t st_moves_done(void) {
+  hal_irq_state s = hal_irq_save();
+  uint16_t m = pf.moves_done;
+  hal_irq_restore(s);
+  return m;
+}
+
+uint16_t st_gripper_us(void) {
+  hal_irq_state s = hal_irq_save();
+  uint16_t g = pf.gripper_us;
+  hal_irq_restore(s);
+  return g;
+}
+
+void st_jog(uint8_t joint, uint8_t positive, uint32_t max_steps, uint32_t speed, uint8_t stop_level) {
+  uint32_t steps[6] = {0, 0, 0, 0, 0, 0};
+  steps[joint] = max_steps;
+  uint32_t v = speed * PLAN_V_ONE;
+  hal_irq_state s = hal_irq_save();
+  pf.entry = ENTRY_JOG;
+  pf.block = 0;
+  pf.v = pf.v0 = pf.vc = v;  // constant speed: no ramp (homing speeds are low)
+  pf.dv = 0;
+  pf.accel_until = 0;
+  pf.decel_after = max_steps;
+  pf.elapsed_ms = 0;
+  pf.duration_ms = 0;
+  pf.limits_start = hal_limit_inputs();
+  st.jog_mask = (uint8_t)(1u << joint);
+  st.jog_level = stop_level;
+  start_steps(steps, positive ? (uint8_t)(1u << joint) : 0, max_steps, v);
+  hal_irq_restore(s);
+}
+
+uint8_t st_jog_hit(void) {
+  hal_irq_state s = hal_irq_save();
+  uint8_t h = st.jog_hit;
+  hal_irq_restore(s);
+  return h;
+}
+
+// Starts the oldest queue entry.
+static void start_entry(plan_block *b) {
+  pf.entry = ENTRY_QUEUE;
+  pf.block = b;
+  pf.elapsed_ms = 0;
+  pf.duration_ms = b->duration_ms;
+  st_position(pf.start);
+  if (b->kind == BLOCK_GRIPPER) {
+    pf.gripper_us = b->pulse_us;
+    hal_servo_write(b->pulse_us);
+    return;
+  }
+  pf.v = b->v0;
+  pf.v0 = b->v0;
+  pf.vc = b->vc;
+  pf.dv = b->dv;
+  pf.accel_until = b->accel_until;
+  pf.decel_after = b->decel_after;
+  pf.limits_start = hal_limit_inputs();
+  if (b->n) start_steps(b->steps, b->dir_positive, b->n, b->v0);
+}
+
+static void complete_entry(void) {
+  plan_block *b = pf.block;
+  int32_t end[6];
+  st_position(end);
+  pf.moves_done++;
+  hal_entry_done(b->kind, pf.moves_done, b->target, pf.start, end, b->planned_ms, b->pulse_us);
+  pf.entry = ENTRY_NONE;
+  pf.block = 0;
+  queue_pop();
+}
+
+// One velocity step of the trapezoid; the ramp-down starts at a step count so every move ends at rest.
+static void ramp(void) {
+  hal_irq_state s = hal_irq_save();
+  uint32_t done = st.n - st.left;
+  hal_irq_restore(s);
+  uint32_t v = pf.v;
+  if (pf.stopping) {
+    if (v <= pf.v0 + pf.dv) {  // at the start/stop rate: stop here
+      stop_steps();
+      return;
+    }
+    v -= pf.dv;
+  } else if (done >= pf.decel_after) {
+    v = v > pf.v0 + pf.dv ? v - pf.dv : pf.v0;
+  } else if (v < pf.vc) {
+    v = pf.vc - v > pf.dv ? v + pf.dv : pf.vc;
+  }
+  pf.v = v;
+  uint32_t iv = interval_of(v);
+  s = hal_irq_save();
+  st.interval = iv;
+  hal_irq_restore(s);
+}
+
+// Time budget: ~100 cycles plus one 32-bit division (~600 cycles) while a move runs, 1000 times a second (~4% of
+// the CPU); the step interrupt preempts it on the AVR.
+void st_profile_isr(void) {
+  uint8_t limits = hal_limit_inputs();
+  uint8_t seen = st.estop_seen;  // an 8-bit read is atomic; the step ISR only ever sets it
+  if (seen) st.estop_seen = 0;
+  if (hal_estop_input() || seen) {
+    if (!(sys.faults & RBX1_FAULT_ESTOP_INPUT)) sys_set_fault(RBX1_FAULT_ESTOP_INPUT);
+    if (pf.entry != ENTRY_NONE || queue_count()) st_abort();
+    return;
+  }
+  uint8_t moving = steps_running();
+  if (moving) {
+    uint8_t watched = (uint8_t)(0x3F & ~st.jog_mask);  // a homing jog's own switch is expected
+    if ((limits & ~pf.limits_start) & watched) {
+      sys_set_fault(RBX1_FAULT_LIMIT_HIT);
+      st_abort();
+      return;
+    }
+  }
+  if (sys_faulted()) {
+    if (pf.entry != ENTRY_NONE || queue_count()) st_abort();
+    return;
+  }
+  if (pf.entry == ENTRY_NONE) {
+    if (pf.stopping) {  // nothing (left) to stop: at rest
+      pf.stopping = 0;
+      return;
+    }
+    plan_block *b = queue_first();
+    if (b) start_entry(b);
+    return;
+  }
+  if (pf.elapsed_ms != 0xFFFF) pf.elapsed_ms++;
+  if (moving) {
+    ramp();
+    return;
+  }
+  // Steps done (or none): jogs end now; queue entries wait out their minimum duration, unless stopping.
+  if (pf.entry == ENTRY_JOG) {
+    st.jog_mask = 0;
+    pf.entry = ENTRY_NONE;
+    return;
+  }
+  if (pf.stopping) {  // a truncated entry is not completed
+    pf.entry = ENTRY_NONE;
+    pf.block = 0;
+    queue_flush(0);
+    pf.stopping = 0;
+    return;
+  }
+  if (pf.elapsed_ms >= pf.duration_ms) complete_entry();
+}

@@ -1,0 +1,186 @@
+// pick_test.cpp - the pick's waypoints: order, kinds, heights, yaw, gripper pulses, timing and errors.
+#include "pick.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "joint_steps.hpp"
+#include "kinematics.hpp"
+#include "vision_map.hpp"
+
+using namespace rbx1::arm;
+
+namespace {
+
+double axis_diff(double a, double b) { return std::fabs(normalize_axis_deg(a - b)); }
+
+const char* const kNames[] = {"approach", "yaw",   "open",    "descend", "close",
+                              "lift",     "carry", "release", "retreat", "home"};
+
+}  // namespace
+
+TEST(Gripper, OpeningToPulse) {
+  GripperConfig g;  // 1000 us closed, 2000 us at 50 mm
+  uint16_t us = 0;
+  std::string error;
+  ASSERT_TRUE(gripper_pulse_us(g, 0, us, error));
+  EXPECT_EQ(us, 1000);
+  ASSERT_TRUE(gripper_pulse_us(g, 25, us, error));
+  EXPECT_EQ(us, 1500);
+  ASSERT_TRUE(gripper_pulse_us(g, 50, us, error));
+  EXPECT_EQ(us, 2000);
+  ASSERT_TRUE(gripper_pulse_us(g, 12.3, us, error));
+  EXPECT_EQ(us, 1246);
+  EXPECT_FALSE(gripper_pulse_us(g, 50.5, us, error));
+  EXPECT_EQ(error, "gripper opening 50.5 mm is wider than the gripper's 50.0 mm (arm.gripper.max_opening_mm)");
+  EXPECT_FALSE(gripper_pulse_us(g, -1, us, error));
+  g.closed_us = 2000;  // a servo mounted the other way round
+  g.open_us = 1000;
+  ASSERT_TRUE(gripper_pulse_us(g, 10, us, error));
+  EXPECT_EQ(us, 1800);
+}
+
+TEST(Pick, HomeAndScanSteps) {
+  const ArmConfig c;
+  EXPECT_EQ(home_steps(c), (Steps{0, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(scan_steps(c), (Steps{0, 667, 11467, 0, 4359, 0}));
+}
+
+TEST(Pick, MoveDuration) {
+  const ArmConfig c;  // 20 deg/s, at least 200 ms
+  EXPECT_EQ(move_duration_ms(c, Joints{}, Joints{0, 20, -10, 0, 0, 0}), 1000);
+  EXPECT_EQ(move_duration_ms(c, Joints{}, Joints{0, 0, 0, 0, 0, 30.01}), 1501);
+  EXPECT_EQ(move_duration_ms(c, Joints{}, Joints{0, 1, 0, 0, 0, 0}), 200);
+  Waypoint w;
+  std::string error;
+  ASSERT_TRUE(plan_move(c, "scan", home_steps(c), c.scan, w, error)) << error;
+  EXPECT_EQ(w.steps, scan_steps(c));
+  EXPECT_EQ(w.duration_ms, 5250);  // J5 turns 105 deg
+  EXPECT_FALSE(plan_move(c, "scan", home_steps(c), Joints{0, 0, 0, 0, 120, 0}, w, error));
+  EXPECT_EQ(error, "scan: J5 (wrist pitch) at 120.00 deg is above its limit max_deg = 115 (arm.joints.j5.max_deg)");
+  ArmConfig slow;
+  slow.speeds.joint_speed_deg_s = 1;
+  EXPECT_FALSE(plan_move(slow, "scan", home_steps(c), c.scan, w, error));
+  EXPECT_EQ(error.rfind("scan: the move would take 120000 ms", 0), 0u) << error;
+}
+
+TEST(Pick, WaypointsInOrderWithTheirContents) {
+  const ArmConfig c;
+  // An object seen by the camera: centre of the view, grip line at -50 deg in the image.
+  TablePoint t = vision_to_base(c, Eigen::Vector2d(9.0, 6.0), -50);
+  PickObject obj{t.x_mm, t.y_mm, t.yaw_deg, 20.0, 30.0};
+  std::vector<Waypoint> w;
+  std::string error;
+  const Steps start = scan_steps(c);
+  ASSERT_TRUE(plan_pick(c, start, obj, "tray", w, error)) << error;
+  ASSERT_EQ(w.size(), std::size(kNames));
+  for (size_t i = 0; i < w.size(); ++i) {
+    EXPECT_EQ(w[i].name, kNames[i]);
+    bool gripper = w[i].name == "open" || w[i].name == "close" || w[i].name == "release";
+    EXPECT_EQ(w[i].kind, gripper ? WaypointKind::Gripper : WaypointKind::Move) << w[i].name;
+    EXPECT_EQ(w[i].joints, steps_to_joints(c, w[i].steps)) << w[i].name;
+    if (gripper) {
+      EXPECT_EQ(w[i].steps, w[i - 1].steps) << w[i].name << ": the arm stands still";
+      EXPECT_EQ(w[i].dwell_ms, 500);
+      EXPECT_EQ(w[i].duration_ms, 0);
+    } else {
+      EXPECT_GE(w[i].duration_ms, 200) << w[i].name;
+      EXPECT_EQ(w[i].pulse_us, 0) << w[i].name;
+      std::string limit;
+      EXPECT_TRUE(check_limits(c, w[i].joints, limit)) << w[i].name << ": " << limit;
+    }
+  }
+  EXPECT_STREQ(kind_name(w[2].kind), "gripper");
+  EXPECT_STREQ(kind_name(w[0].kind), "move");
+  // Opening 20 + margin 5 = 25 mm -> 1500 us; closing squeezes to the closed pulse; release opens the same.
+  EXPECT_EQ(w[2].pulse_us, 1500);
+  EXPECT_EQ(w[4].pulse_us, 1000);
+  EXPECT_EQ(w[7].pulse_us, 1500);
+  EXPECT_EQ(w.back().steps, home_steps(c));
+
+  // Heights of the tool point; grasp: 30 mm object, 15 mm finger pads -> fingertips 15 mm above the table.
+  auto pose = [&](int i) { return tool_pose(c.links, w[i].joints); };
+  const double tol = 0.3;  // whole steps
+  EXPECT_NEAR(pose(0).x_mm, t.x_mm, tol);
+  EXPECT_NEAR(pose(0).y_mm, t.y_mm, tol);
+  EXPECT_NEAR(pose(0).z_mm, 30 + 40, tol);
+  EXPECT_EQ(w[0].steps[5], start[5]) << "the approach keeps the wrist roll";
+  for (int j = 0; j < 5; ++j) EXPECT_EQ(w[1].steps[j], w[0].steps[j]) << "the yaw turns only the wrist roll";
+  EXPECT_NEAR(pose(3).z_mm, 15, tol);
+  EXPECT_NEAR(pose(3).x_mm, t.x_mm, tol);
+  EXPECT_NEAR(pose(5).z_mm, 15 + 30 + 60, tol);
+  // The gripper's yaw at the grasp is the grip angle (mod 180) mapped to the base frame.
+  for (int i : {1, 3, 5}) {
+    EXPECT_LT(axis_diff(pose(i).yaw_deg, t.yaw_deg), 0.06) << kNames[i];
+    EXPECT_LT(pose(i).tilt_deg, 0.05) << kNames[i];
+  }
+  // Carry: over the tray (150, 250, 5), object bottom 60 mm above it; release yaw = the tray's yaw.
+  const Place& tray = c.places.at("tray");
+  EXPECT_NEAR(pose(6).x_mm, tray.x_mm, tol);
+  EXPECT_NEAR(pose(6).y_mm, tray.y_mm, tol);
+  EXPECT_NEAR(pose(6).z_mm, 5 + 15 + 60, tol);
+  EXPECT_LT(axis_diff(pose(6).yaw_deg, tray.yaw_deg), 0.06);
+  EXPECT_NEAR(pose(8).z_mm, 5 + 15 + 60 + 40, tol);
+  EXPECT_NEAR(pose(8).x_mm, tray.x_mm, tol);
+}
+
+TEST(Pick, GripperYawIsTheGripAngleModulo180) {
+  const ArmConfig c;
+  for (double grip : {-89.0, -50.0, 0.0, 13.67, 68.96, 90.0}) {
+    TablePoint t = vision_to_base(c, Eigen::Vector2d(10.0, 7.5), grip);
+    std::vector<Waypoint> w;
+    std::string error;
+    ASSERT_TRUE(plan_pick(c, home_steps(c), PickObject{t.x_mm, t.y_mm, t.yaw_deg, 10, 10}, "tray", w, error))
+        << error;
+    ToolPose p = tool_pose(c.links, w[3].joints);
+    EXPECT_LT(axis_diff(p.yaw_deg, t.yaw_deg), 0.06) << grip;
+    // The default mount turns image angles by 90 deg and mirrors them: base yaw = 90 - image angle (mod 180).
+    EXPECT_LT(axis_diff(p.yaw_deg, 90 - grip), 0.06) << grip;
+  }
+}
+
+TEST(Pick, ShallowObjectGraspedAtTheFingerClearance) {
+  const ArmConfig c;
+  std::vector<Waypoint> w;
+  std::string error;
+  ASSERT_TRUE(plan_pick(c, home_steps(c), PickObject{280, -30, 10, 8, 5}, "tray", w, error)) << error;
+  EXPECT_NEAR(tool_pose(c.links, w[3].joints).z_mm, 2, 0.3);
+}
+
+TEST(Pick, OpeningWiderThanTheGripperIsRefused) {
+  const ArmConfig c;
+  std::vector<Waypoint> w;
+  std::string error;
+  EXPECT_FALSE(plan_pick(c, home_steps(c), PickObject{280, 0, 0, 52, 10}, "tray", w, error));
+  EXPECT_EQ(error, "gripper opening 52.0 mm is wider than the gripper's 50.0 mm (arm.gripper.max_opening_mm)");
+  EXPECT_TRUE(w.empty());
+  // Within the gripper but not with the margin: opens fully.
+  ASSERT_TRUE(plan_pick(c, home_steps(c), PickObject{280, 0, 0, 48, 10}, "tray", w, error)) << error;
+  EXPECT_EQ(w[2].pulse_us, 2000);
+}
+
+TEST(Pick, Errors) {
+  const ArmConfig c;
+  std::vector<Waypoint> w;
+  std::string error;
+  EXPECT_FALSE(plan_pick(c, home_steps(c), PickObject{280, 0, 0, 10, 10}, "bin", w, error));
+  EXPECT_EQ(error, "unknown place 'bin' (arm.places has: tray)");
+  EXPECT_FALSE(plan_pick(c, home_steps(c), PickObject{700, 0, 0, 10, 10}, "tray", w, error));
+  EXPECT_EQ(error.rfind("approach: target (700.0, 0.0, 50.0) mm is out of reach", 0), 0u) << error;
+  // Reachable above but not down at the table: the descend fails.
+  EXPECT_FALSE(plan_pick(c, home_steps(c), PickObject{415, 0, 0, 10, 10}, "tray", w, error));
+  EXPECT_EQ(error.rfind("descend: ", 0), 0u) << error;
+  // A place out of reach fails at the carry.
+  ArmConfig far = c;
+  far.places["tray"] = Place{0, 600, 0, 0};
+  EXPECT_FALSE(plan_pick(far, home_steps(c), PickObject{280, 0, 0, 10, 10}, "tray", w, error));
+  EXPECT_EQ(error.rfind("carry: ", 0), 0u) << error;
+  // Out of joint limits names the joint.
+  ArmConfig tight = c;
+  tight.joints[0].min_deg = -10;
+  tight.joints[0].max_deg = 10;
+  EXPECT_FALSE(plan_pick(tight, home_steps(c), PickObject{0, 300, 0, 10, 10}, "tray", w, error));
+  EXPECT_NE(error.find("J1 (base yaw)"), std::string::npos) << error;
+  EXPECT_EQ(error.rfind("approach: ", 0), 0u) << error;
+}

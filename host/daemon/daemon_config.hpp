@@ -1,0 +1,24 @@
+// daemon_config.hpp - the [daemon] table: control socket, start-up homing, job timeouts, logging.
+#pragma once
+#include <string>
+
+#include "config.hpp"
+#include "control_client.hpp"
+
+namespace rbx1::daemon {
+
+struct DaemonConfig {
+  std::string socket = control::kDefaultSocket;  // control socket path
+  unsigned socket_mode = 0660;                   // owner and group (the rbx1 group) may connect
+  std::string home_on_start = "declare";         // "home": HOME cycle on the switches; "declare": SET_POSITION(home pose)
+  std::string log_level = "info";                // debug | info | warn | error
+  double move_timeout_s = 20;       // slack beyond a waypoint's planned duration before the job fails
+  double job_timeout_s = 300;       // a whole job (scan, pick, home)
+  double reconnect_timeout_s = 30;  // how long a vanished link may stay away before the job fails
+  int status_poll_ms = 50;          // STATUS polling while waiting for motion (also the heartbeat then)
+  std::string annotate;             // if set, each scan writes the annotated image (Figure 20) here
+};
+
+void parse_daemon_config(config::Section daemon, DaemonConfig& out);
+
+}  // namespace rbx1::daemon

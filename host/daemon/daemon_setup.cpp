@@ -1,0 +1,44 @@
+// daemon_setup.cpp - strings the parts' config readers together over one TOML file.
+#include "daemon_setup.hpp"
+
+#include <filesystem>
+
+namespace rbx1::daemon {
+
+namespace fs = std::filesystem;
+
+namespace {
+void resolve(std::string& path, const fs::path& dir) {
+  if (path.empty() || fs::path(path).is_absolute()) return;
+  path = (dir / path).lexically_normal().string();
+}
+}  // namespace
+
+bool load_config(const std::string& file, const Overrides& overrides, Config& out, config::Errors& errors) {
+  toml::table root = config::load_file(file, errors);
+  if (!errors.ok()) return false;
+  config::Section top(&root, "", errors);
+  out.arm = arm::default_arm_config();
+  camera::parse_camera_config(top.section("camera"), out.camera);
+  vision::parse_vision_config(top.section("vision"), out.vision);
+  arm::parse_arm_config(top.section("arm"), out.arm);
+  link::parse_link_config(top.section("link"), out.link);
+  gpio::parse_gpio_config(top.section("gpio"), out.gpio);
+  parse_daemon_config(top.section("daemon"), out.daemon);
+  top.reject_unknown();  // a misspelt table name must not pass silently
+
+  if (!overrides.port.empty()) out.link.port = overrides.port;
+  if (!overrides.socket.empty()) out.daemon.socket = overrides.socket;
+  if (!overrides.annotate.empty()) out.daemon.annotate = overrides.annotate;
+  if (out.link.port.empty()) errors.add("link.port", "must be set (in the file, with --port, or $RBX1_PORT)");
+  if (out.camera.device.empty()) errors.add("camera.device", "must be set (a /dev/videoN, an image or a folder)");
+
+  fs::path dir = fs::absolute(fs::path(file)).parent_path();
+  if (out.camera.device.rfind("/dev/", 0) != 0) resolve(out.camera.device, dir);
+  resolve(out.vision.background_path, dir);
+  resolve(out.vision.library_path, dir);
+  resolve(out.vision.calibration_path, dir);
+  return errors.ok();
+}
+
+}  // namespace rbx1::daemon

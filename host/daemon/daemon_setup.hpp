@@ -1,0 +1,35 @@
+// daemon_setup.hpp - the whole config file: each part reads its own table; unknown tables are errors.
+#pragma once
+#include <string>
+
+#include "arm_config.hpp"
+#include "config.hpp"
+#include "daemon_config.hpp"
+#include "frame_source.hpp"
+#include "gpio.hpp"
+#include "link.hpp"
+#include "vision.hpp"
+
+namespace rbx1::daemon {
+
+struct Config {
+  camera::CameraConfig camera;
+  vision::VisionOptions vision;
+  arm::ArmConfig arm;
+  link::LinkConfig link;
+  gpio::GpioConfig gpio;
+  DaemonConfig daemon;
+};
+
+// Command-line and environment overrides, applied after the file (documented in README.md).
+struct Overrides {
+  std::string port;      // --port or $RBX1_PORT: [link] port
+  std::string socket;    // --socket: [daemon] socket
+  std::string annotate;  // --annotate: [daemon] annotate
+};
+
+// Reads and validates file; relative paths in it ([camera] device, [vision] files) are taken relative to the
+// file's folder. Every problem goes to errors, naming its key. Returns errors.ok().
+bool load_config(const std::string& file, const Overrides& overrides, Config& out, config::Errors& errors);
+
+}  // namespace rbx1::daemon

@@ -1,0 +1,542 @@
+// machine.cpp - the job runner: link preparation, the paper's pick sequence, status, e-stop, shutdown.
+#include "machine.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+
+#include <spdlog/spdlog.h>
+
+#include "joint_steps.hpp"
+#include "pick_plan.hpp"
+
+namespace rbx1::daemon {
+
+using Clock = std::chrono::steady_clock;
+
+namespace {
+int64_t mono_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
+}
+}  // namespace
+
+Machine::Machine(Config config, std::unique_ptr<gpio::EdgeSource> estop_source)
+    : config_(std::move(config)), estop_source_(std::move(estop_source)) {}
+
+int Machine::start_gpio(std::string& error) {
+  const auto& g = config_.gpio;
+  if (estop_source_) {
+    estop_input_ = std::make_unique<gpio::InputWatcher>("estop", std::move(estop_source_), g.estop.active_low,
+                                                        g.estop.debounce_ms);
+  } else if (g.estop.configured()) {
+    estop_input_ = gpio::open_input("estop", g.estop, error);
+    if (!estop_input_) return -ENODEV;
+  }
+  if (estop_input_) {
+    int r = estop_input_->start([this](const gpio::InputEvent& ev) {
+      if (ev.active) estop("gpio");  // on the watcher thread: ESTOP goes out from here
+    });
+    if (r < 0) {
+      error = estop_input_->describe() + ": cannot watch the e-stop line (" + std::to_string(r) + ")";
+      return r;
+    }
+    spdlog::info("gpio: e-stop on {}", estop_input_->describe());
+  }
+  if (g.status_led.configured()) {
+    status_led_ = gpio::open_output("status_led", g.status_led, error);
+    if (!status_led_) return -ENODEV;
+    status_led_->set(false);
+  }
+  if (g.start_button.configured())
+    spdlog::warn("gpio: start_button is configured but rbx1d gives it no job; it is ignored");
+  return 0;
+}
+
+void Machine::set_led(bool ready) {
+  if (status_led_) status_led_->set(ready);
+}
+
+Machine::~Machine() { stop(); }
+
+int Machine::start(std::string& error) {
+  camera_ = camera::open_source(config_.camera, error);
+  if (!camera_) return -ENOENT;
+  vision_ = vision::Vision::create(config_.vision, error);
+  if (!vision_) return -EINVAL;
+  spdlog::info("camera: {}", camera_->describe());
+  if (int r = start_gpio(error); r < 0) return r;
+  link_.set_timing(config_.link.timeout_ms, config_.link.retries);
+  worker_ = std::thread([this] { worker(); });
+  return 0;
+}
+
+void Machine::stop() {
+  {
+    std::lock_guard lock(mutex_);
+    if (stopping_ && !worker_.joinable()) return;
+    stopping_ = true;
+    abort_reason_ = "shutdown";
+  }
+  abort_ = true;
+  cv_.notify_all();
+  if (worker_.joinable()) worker_.join();
+  if (estop_input_) estop_input_->stop();
+  set_led(false);
+  link_.close();
+}
+
+// ---- e-stop ---------------------------------------------------------------------------------------------
+
+void Machine::estop(const std::string& source) {
+  // The frame first: nothing (no lock, no log) may delay it.
+  rbx1_estop_resp resp{};
+  int r = link_.estop(resp);
+  {
+    std::lock_guard lock(mutex_);
+    last_estop_ = source;
+    abort_reason_ = "estop";
+  }
+  abort_ = true;
+  cv_.notify_all();
+  if (r < 0)
+    spdlog::error("estop ({}): ESTOP not acknowledged ({}); the firmware's own e-stop input is the backstop", source, r);
+  else
+    spdlog::warn("estop ({}): ESTOP acknowledged, status {}", source, rbx1_status_name(resp.status));
+}
+
+// ---- control requests (server thread) --------------------------------------------------------------------
+
+void Machine::handle(const Request& request, std::shared_ptr<Reply> reply) {
+  switch (request.command) {
+    case Command::Status:
+      reply->result(status_reply());
+      return;
+    case Command::Estop: {
+      bool had_job;
+      {
+        std::lock_guard lock(mutex_);
+        had_job = running_.has_value();
+      }
+      estop("control");
+      reply->event("estop_sent", {{"source", "control"}});
+      rbx1_status_resp st{};
+      nlohmann::json result{{"estop", true}, {"aborted_job", had_job}};
+      if (link_.connected() && link_.status(st) == 0) {
+        note_status(st);
+        result["firmware"] = status_json(st);
+      }
+      reply->result(result);
+      return;
+    }
+    case Command::Shutdown:
+      reply->result({{"shutdown", true}});
+      if (on_shutdown_) on_shutdown_();
+      return;
+    default:
+      break;
+  }
+  std::lock_guard lock(mutex_);
+  if (stopping_) {
+    reply->error("shutting_down", "rbx1d is shutting down");
+    return;
+  }
+  if (running_ || !queue_.empty()) {
+    reply->error("busy", std::string("a job is running (") + command_name(running_ ? running_->command : queue_.front().request.command) + ")");
+    return;
+  }
+  queue_.push_back({request, reply});
+  cv_.notify_all();
+}
+
+nlohmann::json Machine::status_reply() {
+  std::lock_guard lock(mutex_);
+  nlohmann::json j;
+  j["job"] = running_ ? nlohmann::json(command_name(running_->command)) : nlohmann::json(nullptr);
+  j["ready"] = prepared_ && link_.connected();
+  j["link"] = {{"port", config_.link.port}, {"connected", link_.connected()}};
+  if (!link_error_.empty()) j["link"]["error"] = link_error_;
+  auto stats = link_.stats();
+  j["link"]["retransmissions"] = stats.retransmissions;
+  j["link"]["reconnects"] = stats.reconnects;
+  if (link_.connected()) {
+    const auto& fw = link_.firmware();
+    j["link"]["firmware"] = std::to_string(fw.fw_major) + "." + std::to_string(fw.fw_minor) + "." + std::to_string(fw.fw_patch);
+  }
+  j["firmware"] = last_status_ ? status_json(*last_status_) : nlohmann::json(nullptr);
+  if (last_status_) {
+    arm::Steps steps;
+    for (int i = 0; i < RBX1_JOINTS; ++i) steps[i] = last_status_->position[i];
+    arm::Joints deg = arm::steps_to_joints(config_.arm, steps);
+    nlohmann::json a = nlohmann::json::array();
+    for (double d : deg) a.push_back(std::round(d * 100) / 100);
+    j["joints_deg"] = a;
+  }
+  j["camera"] = camera_ ? camera_->describe() : "";
+  if (!last_estop_.empty()) j["last_estop"] = last_estop_;
+  return j;
+}
+
+void Machine::note_status(const rbx1_status_resp& s) {
+  std::lock_guard lock(mutex_);
+  last_status_ = s;
+}
+
+// ---- the worker ----------------------------------------------------------------------------------------------
+
+bool Machine::prepare(std::string& error) {
+  if (!link_.connected()) {
+    int r = link_.name().empty() ? link_.open(config_.link, error) : link_.reconnect(error);
+    if (r == -EOPNOTSUPP || (r < 0 && link_.name().empty())) r = link_.open(config_.link, error);
+    if (r < 0) return false;
+    const auto& fw = link_.firmware();
+    spdlog::info("link: {} firmware {}.{}.{}, {} joints, queue {}", link_.name(), fw.fw_major, fw.fw_minor,
+                 fw.fw_patch, fw.joints, fw.queue_size);
+  }
+  rbx1_status_resp st{};
+  if (int r = link_.status(st); r < 0) {
+    error = link_.name() + ": STATUS failed (" + std::to_string(r) + ")";
+    return false;
+  }
+  note_status(st);
+  // A lost heartbeat is the previous host session's doing; an e-stop is the operator's to clear.
+  if ((st.faults & RBX1_FAULTS_LATCHING) == RBX1_FAULT_HEARTBEAT_LOST) {
+    rbx1_clear_fault_resp cf{};
+    link_.clear_fault(cf);
+    link_.status(st);
+    spdlog::info("link: cleared a stale HEARTBEAT_LOST");
+  }
+  if (st.state == RBX1_STATE_FAULT) {
+    error = "firmware in FAULT " + fault_names(st.faults).dump() + " (rbx1 clear-fault)";
+    // Still usable for status and clear_fault: report ready=false but keep the link.
+    return false;
+  }
+  if (!st.enabled) {
+    rbx1_enable_resp en{};
+    if (link_.enable(true, en) < 0 || en.status != RBX1_OK) {
+      error = std::string("ENABLE refused: ") + rbx1_status_name(en.status);
+      return false;
+    }
+  }
+  if (st.homed != 0x3F) {
+    if (config_.daemon.home_on_start == "home") {
+      rbx1_home_resp h{};
+      if (link_.home(0, h) < 0 || h.status != RBX1_OK) {
+        error = std::string("HOME refused: ") + rbx1_status_name(h.status);
+        return false;
+      }
+      auto deadline = Clock::now() + std::chrono::seconds(120);
+      do {
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        if (link_.status(st) < 0) {
+          error = "link lost while homing";
+          return false;
+        }
+        if (st.state == RBX1_STATE_FAULT) {
+          error = "homing failed " + fault_names(st.faults).dump();
+          return false;
+        }
+      } while (st.state == RBX1_STATE_HOMING && Clock::now() < deadline);
+      if (st.homed != 0x3F) {
+        error = "homing did not complete";
+        return false;
+      }
+      spdlog::info("link: homed on the switches");
+    } else {
+      // Declared: the arm is taken to be at its configured home pose (the operator put it there).
+      arm::Steps home = arm::joints_to_steps(config_.arm, config_.arm.home);
+      rbx1_set_position_resp sp{};
+      if (link_.set_position(home.data(), sp) < 0 || sp.status != RBX1_OK) {
+        error = std::string("SET_POSITION refused: ") + rbx1_status_name(sp.status);
+        return false;
+      }
+      spdlog::info("link: positions declared at the home pose");
+    }
+  }
+  link_.status(st);
+  note_status(st);
+  return true;
+}
+
+void Machine::worker() {
+  bool logged_error = false;
+  for (;;) {
+    std::unique_lock lock(mutex_);
+    if (stopping_) break;
+    if (!prepared_ || !link_.connected()) {
+      lock.unlock();
+      std::string error;
+      bool ok = prepare(error);
+      lock.lock();
+      prepared_ = ok;
+      link_error_ = ok ? "" : error;
+      set_led(ok);
+      if (ok) {
+        spdlog::info("ready");
+        logged_error = false;
+      } else if (!logged_error) {
+        spdlog::warn("not ready: {} (retrying)", error);
+        logged_error = true;
+      }
+    }
+    int wait_ms = prepared_ ? config_.link.heartbeat_ms : 500;
+    cv_.wait_for(lock, std::chrono::milliseconds(wait_ms), [this] { return stopping_ || !queue_.empty(); });
+    if (stopping_) break;
+    if (!queue_.empty()) {
+      Job job = std::move(queue_.front());
+      queue_.pop_front();
+      running_ = job.request;
+      abort_ = false;
+      abort_reason_ = "aborted";
+      lock.unlock();
+      run_job(job);
+      lock.lock();
+      running_.reset();
+      continue;
+    }
+    if (link_.connected()) {
+      // Idle heartbeat: a STATUS keeps the firmware's heartbeat fed and the status cache fresh.
+      lock.unlock();
+      rbx1_status_resp st{};
+      int r = link_.status(st);
+      if (r == 0) note_status(st);
+      else spdlog::warn("link: idle STATUS failed ({})", r);
+    }
+  }
+  // Shutdown while moving: a controlled stop, never an arm left running unattended.
+  if (link_.connected()) {
+    rbx1_status_resp st{};
+    if (link_.status(st) == 0 && st.state == RBX1_STATE_MOVING) {
+      rbx1_stop_resp sr{};
+      link_.stop(sr);
+    }
+  }
+}
+
+void Machine::run_job(Job& job) {
+  Reply& reply = *job.reply;
+  reply.event("job_started", request_json(job.request));
+  auto started = Clock::now();
+  job_deadline_ns_ = mono_ns() + int64_t(config_.daemon.job_timeout_s * 1e9);
+  switch (job.request.command) {
+    case Command::Scan: job_scan(reply); break;
+    case Command::Pick: job_pick(reply, job.request.name, job.request.place); break;
+    case Command::Home: job_home(reply); break;
+    case Command::ClearFault: job_clear_fault(reply); break;
+    default: reply.error("bad_request", "not a job"); break;
+  }
+  if (!reply.finished()) reply.error("internal", "job ended without a result");
+  spdlog::info("job {} ended after {:.2f} s", command_name(job.request.command),
+               std::chrono::duration<double>(Clock::now() - started).count());
+}
+
+bool Machine::ready(Reply& reply) {
+  std::string error;
+  {
+    std::lock_guard lock(mutex_);
+    if (prepared_ && link_.connected()) return true;
+    error = link_error_;
+  }
+  // The worker retries in the background; a job waits a moment for a link that is just coming up.
+  bool ok = prepare(error);
+  {
+    std::lock_guard lock(mutex_);
+    prepared_ = ok;
+    link_error_ = ok ? "" : error;
+  }
+  if (!ok) {
+    bool fault = error.rfind("firmware in FAULT", 0) == 0;
+    reply.error(fault ? "fault" : "not_ready", error);
+  }
+  return ok;
+}
+
+MotionHooks Machine::hooks(Reply& reply) {
+  MotionHooks h;
+  h.emit = [&reply](const std::string& name, nlohmann::json fields) { reply.event(name, std::move(fields)); };
+  h.aborted = [this] { return abort_.load() || mono_ns() > job_deadline_ns_.load(); };
+  h.abort_reason = [this] {
+    std::lock_guard lock(mutex_);
+    return abort_.load() ? abort_reason_ : std::string("timeout");
+  };
+  h.on_status = [this](const rbx1_status_resp& s) { note_status(s); };
+  return h;
+}
+
+bool Machine::run_steps(Reply& reply, const std::vector<MotionStep>& steps, MotionResult& result) {
+  Motion motion(link_, {config_.daemon.status_poll_ms, config_.daemon.move_timeout_s, config_.daemon.reconnect_timeout_s});
+  result = motion.run(steps, hooks(reply));
+  if (!result.ok) {
+    if (result.code == "estop") reply.event("estop", {{"source", last_estop_.empty() ? "firmware" : last_estop_},
+                                                      {"firmware", status_json(result.last)}});
+    reply.error(result.code, result.message);
+    return false;
+  }
+  return true;
+}
+
+bool Machine::move_to(Reply& reply, const std::string& name, const arm::Joints& pose) {
+  rbx1_status_resp st{};
+  {
+    std::lock_guard lock(mutex_);
+    if (last_status_) st = *last_status_;
+  }
+  std::vector<MotionStep> steps;
+  std::string error;
+  if (!plan_pose_move(config_.arm, st, name, pose, steps, error)) {
+    reply.error("plan_failed", error);
+    return false;
+  }
+  MotionResult result;
+  return run_steps(reply, steps, result);
+}
+
+bool Machine::capture_and_detect(Reply& reply, nlohmann::json& detections, std::string& report) {
+  cv::Mat frame;
+  int r = camera_->read(frame);
+  int64_t captured_ns = mono_ns();
+  if (r < 0 || frame.empty()) {
+    reply.error("camera_failed", camera_->describe() + ": capture failed (" + std::to_string(r) + ")");
+    return false;
+  }
+  reply.event("captured", {{"source", camera_->describe()}, {"width", frame.cols}, {"height", frame.rows},
+                           {"mono_ns", captured_ns}});
+  std::string error;
+  vision::Detection det;
+  cv::Mat processed;
+  if (!vision_->run(frame, det, processed, error)) {
+    reply.error("vision_failed", error);
+    return false;
+  }
+  detections = vision_->to_json(det);
+  report = vision_->report(det);
+  nlohmann::json ev{{"objects", detections["objects"].size()}, {"report", report}, {"detections", detections}};
+  nlohmann::json labels = nlohmann::json::array();
+  for (const auto& o : detections["objects"]) labels.push_back(o.value("label", nlohmann::json(nullptr)));
+  ev["labels"] = labels;
+  if (!config_.daemon.annotate.empty()) {
+    std::string aerr;
+    if (write_annotated(*vision_, processed, det, config_.daemon.annotate, aerr)) ev["annotated"] = config_.daemon.annotate;
+    else spdlog::warn("annotate: {}", aerr);
+  }
+  reply.event("detected", ev);
+  return true;
+}
+
+// ---- jobs -------------------------------------------------------------------------------------------------
+
+void Machine::job_scan(Reply& reply) {
+  if (!ready(reply)) return;
+  if (!move_to(reply, "scan_pose", config_.arm.scan)) return;
+  nlohmann::json detections;
+  std::string report;
+  if (!capture_and_detect(reply, detections, report)) return;
+  reply.result({{"objects", detections["objects"].size()}, {"report", report}, {"detections", detections}});
+}
+
+void Machine::job_home(Reply& reply) {
+  if (!ready(reply)) return;
+  if (!move_to(reply, "home", config_.arm.home)) return;
+  rbx1_status_resp st{};
+  link_.status(st);
+  note_status(st);
+  reply.result({{"home", true}, {"position", std::vector<int32_t>(st.position, st.position + RBX1_JOINTS)}});
+}
+
+void Machine::job_clear_fault(Reply& reply) {
+  if (!link_.connected()) {
+    std::string error;
+    if (!prepare(error) && !link_.connected()) {
+      reply.error("not_ready", error);
+      return;
+    }
+  }
+  rbx1_clear_fault_resp cf{};
+  int r = link_.clear_fault(cf);
+  if (r < 0) {
+    reply.error("link_down", link_.name() + ": CLEAR_FAULT failed (" + std::to_string(r) + ")");
+    return;
+  }
+  if (cf.status != RBX1_OK) {
+    reply.error(cf.status == RBX1_ESTOP_ACTIVE ? "estop_active" : "fault",
+                std::string("CLEAR_FAULT refused: ") + rbx1_status_name(cf.status) +
+                    (cf.status == RBX1_ESTOP_ACTIVE ? " (release the e-stop input first)" : ""));
+    return;
+  }
+  reply.event("fault_cleared");
+  std::string error;
+  bool ok = prepare(error);
+  {
+    std::lock_guard lock(mutex_);
+    prepared_ = ok;
+    link_error_ = ok ? "" : error;
+    last_estop_.clear();
+  }
+  if (!ok) {
+    reply.error("not_ready", error);
+    return;
+  }
+  rbx1_status_resp st{};
+  link_.status(st);
+  note_status(st);
+  reply.result({{"cleared", true}, {"firmware", status_json(st)}});
+}
+
+void Machine::job_pick(Reply& reply, const std::string& name, const std::string& place) {
+  if (!config_.arm.places.count(place)) {
+    std::string known;
+    for (const auto& [k, v] : config_.arm.places) known += (known.empty() ? "" : ", ") + k;
+    reply.error("unknown_place", "no place \"" + place + "\" in [arm] places (known: " + known + ")");
+    return;
+  }
+  if (!ready(reply)) return;
+  // The paper's sequence: scan pose, capture, detect, identify.
+  if (!move_to(reply, "scan_pose", config_.arm.scan)) return;
+  nlohmann::json detections;
+  std::string report;
+  if (!capture_and_detect(reply, detections, report)) return;
+  const nlohmann::json* best = nullptr;
+  std::string seen;
+  for (const auto& o : detections["objects"]) {
+    const auto& label = o["label"];
+    if (label.is_string()) {
+      seen += (seen.empty() ? "" : ", ") + label.get<std::string>();
+      if (label.get<std::string>() == name &&
+          (!best || o.value("match_score", 0.0) > best->value("match_score", 0.0)))
+        best = &o;
+    }
+  }
+  if (!best) {
+    // Absent: back home, then report the error naming the object (the paper's rule).
+    reply.event("absent", {{"name", name}, {"seen", seen}});
+    if (!move_to(reply, "home", config_.arm.home)) return;
+    reply.error("object_absent", "object \"" + name + "\" is not in the scene" +
+                                     (seen.empty() ? std::string(" (no known object seen)") : " (seen: " + seen + ")"));
+    return;
+  }
+  reply.event("identified", {{"name", name}, {"index", (*best)["index"]}, {"match_score", (*best)["match_score"]},
+                             {"centroid_cm", (*best)["centroid_cm"]}, {"grip", (*best)["grip"]}});
+  rbx1_status_resp st{};
+  {
+    std::lock_guard lock(mutex_);
+    if (last_status_) st = *last_status_;
+  }
+  std::vector<MotionStep> steps;
+  nlohmann::json plan_info;
+  std::string error;
+  if (!plan_pick_steps(config_.arm, st, *best, place, steps, plan_info, error)) {
+    reply.event("unreachable", {{"name", name}, {"reason", error}});
+    if (!move_to(reply, "home", config_.arm.home)) return;
+    reply.error("plan_failed", "cannot pick \"" + name + "\": " + error);
+    return;
+  }
+  plan_info["steps"] = steps.size();
+  reply.event("planned", plan_info);
+  MotionResult result;
+  if (!run_steps(reply, steps, result)) return;
+  nlohmann::json r{{"picked", name}, {"place", place}, {"steps", steps.size()},
+                   {"position", std::vector<int32_t>(result.last.position, result.last.position + RBX1_JOINTS)},
+                   {"link_recoveries", result.recovered}, {"resent_after_heartbeat_loss", result.resent}};
+  reply.result(r);
+}
+
+}  // namespace rbx1::daemon

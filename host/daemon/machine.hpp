@@ -1,0 +1,87 @@
+// machine.hpp - the arm as a job runner: one worker thread owns the link, the camera and the vision pipeline and
+// runs one job at a time (scan, pick, home, clear_fault); status and e-stop are served at once from any thread.
+#pragma once
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include "daemon_setup.hpp"
+#include "motion.hpp"
+#include "server.hpp"
+
+namespace rbx1::daemon {
+
+class Machine {
+ public:
+  // estop_source: the e-stop line's edges from a test or bench (gpio::SimEdgeSource) instead of [gpio] estop.
+  explicit Machine(Config config, std::unique_ptr<gpio::EdgeSource> estop_source = nullptr);
+  ~Machine();
+
+  // Opens the camera and the vision pipeline (errors are fatal: bad files), starts the GPIO watcher and the
+  // worker, which connects the link in the background (and keeps retrying while the port is absent).
+  int start(std::string& error);
+  // The control socket's handler (server thread).
+  void handle(const Request& request, std::shared_ptr<Reply> reply);
+  // E-stop from any source ("control", "gpio"): ESTOP on the wire first, then the job is aborted.
+  void estop(const std::string& source);
+  // Stops the worker: a running job is aborted with a controlled STOP.
+  void stop();
+  // Called (server thread) when a shutdown request arrives, after its reply.
+  void on_shutdown(std::function<void()> f) { on_shutdown_ = std::move(f); }
+
+ private:
+  struct Job {
+    Request request;
+    std::shared_ptr<Reply> reply;
+  };
+
+  void worker();
+  int start_gpio(std::string& error);
+  bool prepare(std::string& error);                // link open, HELLO, enable, home/declare
+  void run_job(Job& job);
+  void job_scan(Reply& reply);
+  void job_pick(Reply& reply, const std::string& name, const std::string& place);
+  void job_home(Reply& reply);
+  void job_clear_fault(Reply& reply);
+  // Moves to a joint pose (degrees) as one step; false after reply->error.
+  bool move_to(Reply& reply, const std::string& name, const arm::Joints& pose);
+  bool run_steps(Reply& reply, const std::vector<MotionStep>& steps, MotionResult& result);
+  // Capture + detect at the scan pose; false after reply.error.
+  bool capture_and_detect(Reply& reply, nlohmann::json& detections, std::string& report);
+  bool ready(Reply& reply);
+  MotionHooks hooks(Reply& reply);
+  nlohmann::json status_reply();
+  void note_status(const rbx1_status_resp& s);
+
+  Config config_;
+  link::Link link_;
+  std::unique_ptr<camera::FrameSource> camera_;
+  std::unique_ptr<vision::Vision> vision_;
+  std::unique_ptr<gpio::EdgeSource> estop_source_;
+  std::unique_ptr<gpio::InputWatcher> estop_input_;
+  std::unique_ptr<gpio::OutputLine> status_led_;
+  void set_led(bool ready);
+
+  std::thread worker_;
+  std::mutex mutex_;  // guards everything below
+  std::condition_variable cv_;
+  std::deque<Job> queue_;
+  std::optional<Request> running_;  // the job the worker is running
+  bool stopping_ = false;
+  bool prepared_ = false;           // link up, drivers enabled, positions homed or declared
+  std::string link_error_;          // why the link is not ready
+  std::optional<rbx1_status_resp> last_status_;
+  std::string last_estop_;          // source of the last e-stop
+  std::atomic<bool> abort_{false};
+  std::function<void()> on_shutdown_;
+  std::string abort_reason_ = "aborted";
+  std::atomic<int64_t> job_deadline_ns_{0};  // steady clock; a job running past it is aborted ("timeout")
+};
+
+}  // namespace rbx1::daemon

@@ -1,0 +1,75 @@
+// main.cpp - rbx1d: reads the config, prepares the arm, serves the control socket until shutdown or a signal.
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include "daemon_setup.hpp"
+#include "machine.hpp"
+#include "server.hpp"
+
+namespace {
+rbx1::daemon::Server* g_server = nullptr;
+void on_signal(int) {
+  if (g_server) g_server->stop();  // eventfd write: async-signal-safe
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"rbx1d - the RBX1 arm daemon: vision-guided pick-and-place over a Unix control socket"};
+  std::string config_file;
+  bool check = false;
+  rbx1::daemon::Overrides overrides;
+  app.add_option("--config", config_file, "the TOML config file (data/rbx1.toml is the bundled default)")->required();
+  app.add_flag("--check-config", check, "validate the config, print OK or the errors, exit 0 or 2");
+  app.add_option("--port", overrides.port, "serial port, overriding [link] port (also $RBX1_PORT)");
+  app.add_option("--socket", overrides.socket, "control socket path, overriding [daemon] socket");
+  app.add_option("--annotate", overrides.annotate, "write each scan's annotated image here ([daemon] annotate)");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  if (overrides.port.empty())
+    if (const char* env = std::getenv("RBX1_PORT"); env && *env) overrides.port = env;
+
+  rbx1::daemon::Config config;
+  rbx1::config::Errors errors;
+  if (!rbx1::daemon::load_config(config_file, overrides, config, errors)) {
+    for (const auto& m : errors.messages()) std::fprintf(stderr, "rbx1d: %s: %s\n", config_file.c_str(), m.c_str());
+    return 2;
+  }
+  if (check) {
+    std::printf("OK\n");
+    return 0;
+  }
+  spdlog::set_level(spdlog::level::from_str(config.daemon.log_level));
+  spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
+
+  rbx1::daemon::Server server;
+  std::string error;
+  if (server.open(config.daemon.socket, config.daemon.socket_mode, error) < 0) {
+    spdlog::error("control socket: {}", error);
+    return 1;
+  }
+  rbx1::daemon::Machine machine(config);
+  if (machine.start(error) < 0) {
+    spdlog::error("{}", error);
+    return 1;
+  }
+  g_server = &server;
+  std::signal(SIGTERM, on_signal);
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGPIPE, SIG_IGN);
+  machine.on_shutdown([&server] { server.stop(); });
+  spdlog::info("listening on {} (port {})", server.path(), config.link.port);
+  server.run([&machine](const rbx1::daemon::Request& r, std::shared_ptr<rbx1::daemon::Reply> reply) {
+    machine.handle(r, std::move(reply));
+  });
+  spdlog::info("shutting down");
+  machine.stop();
+  g_server = nullptr;
+  return 0;
+}

@@ -1,0 +1,81 @@
+// pick_plan.cpp - detection JSON -> arm::PickObject -> arm::plan_pick waypoints -> MotionStep queue entries.
+#include "pick_plan.hpp"
+
+#include <cmath>
+
+#include "pick.hpp"
+#include "vision_map.hpp"
+
+namespace rbx1::daemon {
+
+namespace {
+arm::Steps steps_of(const rbx1_status_resp& s) {
+  arm::Steps out;
+  for (int i = 0; i < RBX1_JOINTS; ++i) out[i] = s.position[i];
+  return out;
+}
+
+MotionStep to_step(const arm::Waypoint& w) {
+  MotionStep s;
+  s.name = w.name;
+  s.gripper = w.kind == arm::WaypointKind::Gripper;
+  for (int i = 0; i < RBX1_JOINTS; ++i) s.target[i] = w.steps[i];
+  s.duration_ms = w.duration_ms;
+  s.pulse_us = w.pulse_us;
+  s.dwell_ms = w.dwell_ms;
+  return s;
+}
+
+double round2(double v) { return std::round(v * 100) / 100; }
+}  // namespace
+
+bool plan_pose_move(const arm::ArmConfig& cfg, const rbx1_status_resp& current, const std::string& name,
+                    const arm::Joints& pose, std::vector<MotionStep>& out, std::string& error) {
+  arm::Waypoint w;
+  if (!arm::plan_move(cfg, name, steps_of(current), pose, w, error)) return false;
+  out = {to_step(w)};
+  return true;
+}
+
+bool plan_pick_steps(const arm::ArmConfig& cfg, const rbx1_status_resp& current, const nlohmann::json& object,
+                     const std::string& place, std::vector<MotionStep>& out, nlohmann::json& info, std::string& error) {
+  const auto& c = object["centroid_cm"];
+  const auto& grip = object["grip"];
+  if (!c.is_array() || c.size() != 2 || !c[0].is_number() || !grip.is_object() || !grip["opening_cm"].is_number()) {
+    error = "the detection has no table coordinates (vision is uncalibrated: set [vision] px_per_cm or calibration)";
+    return false;
+  }
+  if (!grip.value("feasible", false)) {
+    error = "no feasible grip (opening " + std::to_string(grip["opening_cm"].get<double>()) + " cm)";
+    return false;
+  }
+  arm::TablePoint p = arm::vision_to_base(cfg, {c[0].get<double>(), c[1].get<double>()}, grip["angle_deg"].get<double>());
+  arm::PickObject obj;
+  obj.x_mm = p.x_mm;
+  obj.y_mm = p.y_mm;
+  obj.yaw_deg = p.yaw_deg;
+  obj.opening_mm = grip["opening_cm"].get<double>() * 10.0;
+  std::vector<arm::Waypoint> waypoints;
+  if (!arm::plan_pick(cfg, steps_of(current), obj, place, waypoints, error)) return false;
+  out.clear();
+  nlohmann::json wj = nlohmann::json::array();
+  for (const auto& w : waypoints) {
+    out.push_back(to_step(w));
+    nlohmann::json j{{"name", w.name}, {"kind", arm::kind_name(w.kind)}};
+    if (w.kind == arm::WaypointKind::Gripper) {
+      j["pulse_us"] = w.pulse_us;
+      j["dwell_ms"] = w.dwell_ms;
+    } else {
+      j["target"] = w.steps;
+      j["duration_ms"] = w.duration_ms;
+    }
+    wj.push_back(j);
+  }
+  info = {{"grasp", {{"x_mm", round2(obj.x_mm)}, {"y_mm", round2(obj.y_mm)}, {"yaw_deg", round2(obj.yaw_deg)},
+                     {"opening_mm", round2(obj.opening_mm)}}},
+          {"place", place},
+          {"waypoints", wj}};
+  return true;
+}
+
+}  // namespace rbx1::daemon

@@ -1,0 +1,80 @@
+// fake_peer.hpp - a scripted firmware on the master side of a pty pair, for the link tests.
+#pragma once
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "rbx1_proto.h"
+
+namespace rbx1::link::test {
+
+// Speaks the protocol like the firmware (at-most-once execution with a cached response; ESTOP exempt), with
+// fault knobs the tests set before or between requests.
+class FakePeer {
+ public:
+  struct Received {
+    uint8_t seq, type;
+    uint16_t crc;
+    std::chrono::steady_clock::time_point at;
+  };
+
+  FakePeer();  // opens the pty pair and starts the peer thread
+  ~FakePeer();
+  const std::string& slave_path() const { return slave_; }
+  void hang_up();  // closes the master: the slave side sees a hang-up, as when a USB device vanishes
+
+  // Knobs.
+  std::atomic<int> drop_next{0};       // ignore the next N frames (silence)
+  std::atomic<int> nak_next{0};        // answer the next N frames with NAK BAD_CRC, unexecuted
+  std::atomic<int> corrupt_next{0};    // execute, but send the next N responses with a broken CRC
+  std::atomic<bool> duplicate{false};  // send every response twice
+  std::atomic<bool> stale_first{false};  // before each response, send one with another SEQ
+  std::atomic<int> delay_type{-1};     // hold responses of this type ...
+  std::atomic<int> delay_ms{0};        // ... for this long (the peer keeps reading meanwhile)
+  std::atomic<uint8_t> proto_version{RBX1_PROTO_VERSION};
+  std::atomic<uint8_t> last_seq{41};   // reported by HELLO until a request is executed
+
+  // Records.
+  std::vector<Received> received() const;
+  int executed(uint8_t type) const;
+  int cached_replies() const { return cached_replies_; }
+  std::chrono::steady_clock::time_point sent_at(uint8_t type) const;  // last response of this type sent
+
+ private:
+  struct Pending {
+    std::chrono::steady_clock::time_point due;
+    std::vector<uint8_t> bytes;
+    uint8_t type;
+  };
+  void loop();
+  static void on_frame(void* ctx, const rbx1_frame* f);
+  void handle(const rbx1_frame& f);
+  uint8_t execute(const rbx1_frame& f, uint8_t* resp);
+  void respond(uint8_t seq, uint8_t type, const uint8_t* payload, uint8_t len, bool corrupt);
+  void send(const std::vector<uint8_t>& bytes, uint8_t type);
+
+  int master_ = -1;
+  std::string slave_;
+  std::thread thread_;
+  std::atomic<bool> stop_{false};
+  rbx1_decoder decoder_;
+  mutable std::mutex mu_;
+  std::vector<Received> received_;
+  std::map<uint8_t, int> executed_;
+  std::map<uint8_t, std::chrono::steady_clock::time_point> sent_at_;
+  std::vector<Pending> pending_;
+  std::atomic<int> cached_replies_{0};
+  // at-most-once memory, as in the firmware
+  bool have_last_ = false;
+  uint8_t last_req_seq_ = 0, last_resp_type_ = 0, last_resp_len_ = 0;
+  uint16_t last_crc_ = 0;
+  uint8_t last_resp_[RBX1_MAX_PAYLOAD];
+  uint16_t moves_done_ = 0;
+};
+
+}  // namespace rbx1::link::test

@@ -1,0 +1,527 @@
+// link.cpp - stop-and-wait requests, retransmission, response matching, e-stop, reconnect (PROTOCOL.md).
+#include "link.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <poll.h>
+#include <random>
+#include <sys/eventfd.h>
+#include <unistd.h>
+
+#include <spdlog/spdlog.h>
+
+#include "serial_port.hpp"
+
+namespace rbx1::link {
+
+using Clock = std::chrono::steady_clock;
+
+void parse_link_config(rbx1::config::Section link, LinkConfig& out) {
+  out.port = link.string("port", out.port);
+  if (link.has("port") && out.port.empty()) link.errors().add(link.path() + ".port", "must not be empty");
+  int64_t baud = link.integer("baud", out.baud, 1, 4000000);
+  if (!supported_baud(static_cast<int>(baud)))
+    link.errors().add(link.path() + ".baud", "must be 115200, 230400 or 250000, got " + std::to_string(baud));
+  else
+    out.baud = static_cast<int>(baud);
+  out.timeout_ms = static_cast<int>(link.integer("timeout_ms", out.timeout_ms, 10, 5000));
+  out.retries = static_cast<int>(link.integer("retries", out.retries, 0, 20));
+  out.heartbeat_ms = static_cast<int>(link.integer("heartbeat_ms", out.heartbeat_ms, 20, 30000));
+  link.reject_unknown();
+}
+
+Link::Link() {
+  std::random_device rd;  // a fresh host starts at a random SEQ so it cannot replay the firmware's last frame
+  next_seq_ = static_cast<uint8_t>(rd());
+  last_done_ = Clock::now();
+}
+
+Link::~Link() { close(); }
+
+void Link::set_timing(int timeout_ms, int retries) {
+  std::lock_guard<std::mutex> lock(request_mu_);
+  timeout_ms_ = timeout_ms;
+  retries_ = retries;
+}
+
+int Link::open(const LinkConfig& config, std::string& error) {
+  set_timing(config.timeout_ms, config.retries);
+  return open(config.port, config.baud, error);
+}
+
+int Link::open(const std::string& port, int baud, std::string& error) {
+  close();
+  path_ = name_ = port;
+  baud_ = baud;
+  int fd = open_serial(port, baud, error);
+  if (fd < 0) return fd;
+  return attach(fd, error);
+}
+
+int Link::open_fd(int fd, const std::string& name, std::string& error) {
+  close();
+  path_.clear();
+  name_ = name;
+  baud_ = 0;
+  return attach(fd, error);
+}
+
+int Link::attach(int fd, std::string& error) {
+  int wake = eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
+  if (wake < 0) {
+    int e = errno;
+    ::close(fd);
+    error = name_ + ": eventfd: " + std::strerror(e);
+    return -e;
+  }
+  {
+    std::scoped_lock lock(write_mu_, state_mu_);
+    fd_ = fd;
+    wake_fd_ = wake;
+    gone_error_ = 0;
+    connected_ = true;
+  }
+  rbx1_decoder_init(&decoder_, &Link::on_frame, &Link::on_reject, this);
+  reader_ = std::thread(&Link::reader_loop, this, fd, wake);
+  int r = handshake(error);
+  if (r < 0) detach();
+  return r;
+}
+
+int Link::handshake(std::string& error) {
+  rbx1_hello_resp h{};
+  int r = hello(h);
+  if (r == -EPROTO) {
+    error = name_ + ": firmware speaks protocol version " + std::to_string(h.proto_version) + ", this host " +
+            std::to_string(RBX1_PROTO_VERSION) + "; flash the matching firmware";
+    return r;
+  }
+  if (r < 0) {
+    error = name_ + ": no HELLO response (" + std::strerror(-r) + ")";
+    return r;
+  }
+  if (h.status != RBX1_OK) {
+    error = name_ + ": HELLO refused: " + rbx1_status_name(h.status);
+    return -EPROTO;
+  }
+  spdlog::info("{}: firmware {}.{}.{}, {} joints, queue {}, capabilities 0x{:04x}, continuing at seq {}", name_,
+               h.fw_major, h.fw_minor, h.fw_patch, h.joints, h.queue_size, h.capabilities, next_seq());
+  return 0;
+}
+
+void Link::detach() {
+  int fd, wake;
+  {
+    std::scoped_lock lock(write_mu_, state_mu_);
+    fd = fd_;
+    wake = wake_fd_;
+    fd_ = wake_fd_ = -1;
+    connected_ = false;
+    if (!gone_error_) gone_error_ = ENOTCONN;
+  }
+  state_cv_.notify_all();
+  if (wake >= 0) {
+    uint64_t one = 1;
+    if (::write(wake, &one, sizeof one) < 0) spdlog::debug("{}: eventfd write: {}", name_, std::strerror(errno));
+  }
+  if (reader_.joinable()) reader_.join();
+  if (fd >= 0) ::close(fd);
+  if (wake >= 0) ::close(wake);
+}
+
+void Link::close() {
+  stop_heartbeat();
+  std::lock_guard<std::mutex> lock(request_mu_);
+  detach();
+}
+
+int Link::reconnect(std::string& error) {
+  if (path_.empty()) {
+    error = name_ + ": opened from an fd, cannot be reopened";
+    return -EOPNOTSUPP;
+  }
+  {
+    std::lock_guard<std::mutex> lock(request_mu_);
+    detach();
+  }
+  int fd = open_serial(path_, baud_, error);
+  if (fd < 0) return fd;
+  int r = attach(fd, error);
+  if (r == 0) {
+    counters_.reconnects++;
+    spdlog::info("{}: reconnected", name_);
+  }
+  return r;
+}
+
+int Link::wait_reconnect(int timeout_ms, std::string& error) {
+  auto deadline = Clock::now() + std::chrono::milliseconds(timeout_ms);
+  for (;;) {
+    int r = reconnect(error);
+    if (r == 0 || Clock::now() >= deadline) return r;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+}
+
+void Link::reader_loop(int fd, int wake) {
+  constexpr int kInterByteMs = 50;  // PROTOCOL.md: a partial frame older than this is dropped
+  pollfd fds[2] = {{fd, POLLIN, 0}, {wake, POLLIN, 0}};
+  auto last_rx = Clock::now();
+  uint8_t buf[256];
+  for (;;) {
+    int timeout = rbx1_decoder_pending(&decoder_) ? kInterByteMs : -1;
+    int n = poll(fds, 2, timeout);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      port_gone(errno);
+      return;
+    }
+    if (fds[1].revents) return;  // detach()
+    if (n == 0) {
+      if (Clock::now() - last_rx >= std::chrono::milliseconds(kInterByteMs) && rbx1_decoder_reset(&decoder_))
+        spdlog::debug("{}: dropped a partial frame (inter-byte timeout)", name_);
+      continue;
+    }
+    if (fds[0].revents & (POLLIN | POLLHUP | POLLERR | POLLNVAL)) {
+      ssize_t got = ::read(fd, buf, sizeof buf);
+      if (got > 0) {
+        last_rx = Clock::now();
+        counters_.bytes_received += static_cast<uint64_t>(got);
+        rbx1_decoder_feed(&decoder_, buf, static_cast<size_t>(got));
+        continue;
+      }
+      if (got < 0 && (errno == EINTR || errno == EAGAIN)) continue;
+      // EOF on a tty means hang-up (the USB device or the pty's other side went away).
+      port_gone(got == 0 ? ENODEV : errno);
+      return;
+    }
+  }
+}
+
+void Link::port_gone(int err) {
+  {
+    std::lock_guard<std::mutex> lock(state_mu_);
+    if (!connected_) return;
+    connected_ = false;
+    gone_error_ = err;
+  }
+  spdlog::warn("{}: port gone ({}); waiting for reconnect", name_, std::strerror(err));
+  state_cv_.notify_all();
+}
+
+void Link::on_frame(void* ctx, const rbx1_frame* f) {
+  Link* self = static_cast<Link*>(ctx);
+  std::unique_lock<std::mutex> lock(self->state_mu_);
+  if (f->type == RBX1_MSG_NAK) {
+    self->counters_.naks++;
+    rbx1_nak nak{};
+    rbx1_nak_unpack(&nak, f->payload, f->len);
+    for (Waiter* w : {self->waiting_, self->estop_waiting_}) {
+      if (w && !w->done && w->seq == f->seq) {
+        w->nak = true;
+        spdlog::debug("{}: NAK {} for seq {}", self->name_, rbx1_status_name(nak.reason), f->seq);
+      }
+    }
+    lock.unlock();
+    self->state_cv_.notify_all();
+    return;
+  }
+  for (Waiter* w : {self->waiting_, self->estop_waiting_}) {
+    if (w && !w->done && w->seq == f->seq && f->type == RBX1_RESPONSE(w->type)) {
+      w->done = true;
+      w->len = f->len;
+      std::memcpy(w->payload, f->payload, f->len);
+      lock.unlock();
+      self->state_cv_.notify_all();
+      return;
+    }
+  }
+  // A late duplicate of an answered request, or a response to one given up on: not ours to act on.
+  self->counters_.stale++;
+  spdlog::debug("{}: discarded stale frame type 0x{:02x} seq {}", self->name_, f->type, f->seq);
+}
+
+void Link::on_reject(void* ctx, uint8_t status, uint8_t seq, uint8_t has_seq) {
+  Link* self = static_cast<Link*>(ctx);
+  self->counters_.rejected++;
+  if (has_seq)
+    spdlog::debug("{}: rejected a received frame ({}, seq {})", self->name_, rbx1_status_name(status), seq);
+  else
+    spdlog::debug("{}: rejected a received frame ({})", self->name_, rbx1_status_name(status));
+}
+
+int Link::write_frame(const uint8_t* frame, size_t n) {
+  std::lock_guard<std::mutex> lock(write_mu_);
+  if (fd_ < 0) return -ENOTCONN;
+  size_t off = 0;
+  while (off < n) {
+    ssize_t w = ::write(fd_, frame + off, n - off);
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      int e = errno;
+      port_gone(e);
+      return -e;
+    }
+    off += static_cast<size_t>(w);
+  }
+  counters_.bytes_sent += n;
+  return 0;
+}
+
+// Sends frame, then waits for its response, resending the same bytes on timeout or NAK. slot is the waiter
+// pointer the reader thread looks at (waiting_ or estop_waiting_).
+int Link::transact(Waiter*& slot, Waiter& w, const uint8_t* frame, size_t n, uint8_t* resp, uint8_t& resp_len) {
+  std::unique_lock<std::mutex> lock(state_mu_);
+  if (!connected_) return down_error();
+  slot = &w;
+  int result = -ETIMEDOUT;
+  for (int attempt = 0; attempt <= retries_; ++attempt) {
+    if (attempt > 0) {
+      counters_.retransmissions++;
+      spdlog::debug("{}: retransmitting type 0x{:02x} seq {} ({}/{})", name_, w.type, w.seq, attempt, retries_);
+    }
+    w.nak = false;
+    lock.unlock();
+    int r = write_frame(frame, n);
+    lock.lock();
+    if (r < 0 && !w.done) {
+      result = r;
+      break;
+    }
+    auto deadline = Clock::now() + std::chrono::milliseconds(timeout_ms_);
+    state_cv_.wait_until(lock, deadline, [&] { return w.done || w.nak || !connected_; });
+    if (w.done) {
+      std::memcpy(resp, w.payload, w.len);
+      resp_len = w.len;
+      last_done_ = Clock::now();
+      counters_.requests++;
+      result = 0;
+      break;
+    }
+    if (!connected_) {
+      result = down_error();
+      break;
+    }
+    if (!w.nak) counters_.timeouts++;
+  }
+  slot = nullptr;
+  if (result == -ETIMEDOUT) {
+    counters_.link_down++;
+    spdlog::warn("{}: link down: type 0x{:02x} seq {} unanswered after {} transmissions", name_, w.type, w.seq,
+                 retries_ + 1);
+  }
+  return result;
+}
+
+int Link::request(uint8_t type, const uint8_t* payload, uint8_t len, uint8_t* resp, uint8_t& resp_len) {
+  if (type == RBX1_MSG_ESTOP) {  // never queued behind another request
+    rbx1_estop_resp out{};
+    int r = estop(out);
+    resp[0] = out.status;
+    resp_len = 1;
+    return r;
+  }
+  std::lock_guard<std::mutex> lock(request_mu_);
+  return request_locked(type, payload, len, resp, resp_len);
+}
+
+int Link::request_locked(uint8_t type, const uint8_t* payload, uint8_t len, uint8_t* resp, uint8_t& resp_len) {
+  Waiter w;
+  w.type = type;
+  {
+    std::lock_guard<std::mutex> lock(state_mu_);
+    if (!connected_) return down_error();
+    w.seq = next_seq_++;
+  }
+  uint8_t frame[RBX1_MAX_FRAME];
+  size_t n = rbx1_frame_encode(frame, sizeof frame, w.seq, type, payload, len);
+  if (!n) return -EINVAL;
+  return transact(waiting_, w, frame, n, resp, resp_len);
+}
+
+template <typename Resp>
+int Link::typed(uint8_t type, const uint8_t* payload, uint8_t len, Resp& out,
+                uint8_t (*unpack)(Resp*, const uint8_t*, uint8_t)) {
+  uint8_t resp[RBX1_MAX_PAYLOAD];
+  uint8_t resp_len = 0;
+  int r = request(type, payload, len, resp, resp_len);
+  if (r < 0) return r;
+  out = Resp{};
+  if (unpack(&out, resp, resp_len) == RBX1_OK) return 0;
+  // A refusal may carry the status alone; an OK of the wrong length is a protocol error.
+  if (resp_len >= 1 && resp[0] != RBX1_OK) {
+    out.status = resp[0];
+    return 0;
+  }
+  spdlog::error("{}: response to type 0x{:02x} has {} payload bytes", name_, type, resp_len);
+  return -EBADMSG;
+}
+
+int Link::hello(rbx1_hello_resp& out) {
+  rbx1_hello_req req{RBX1_PROTO_VERSION};
+  uint8_t p[RBX1_HELLO_REQ_LEN];
+  uint8_t n = rbx1_hello_req_pack(&req, p);
+  int r = typed(RBX1_MSG_HELLO, p, n, out, rbx1_hello_resp_unpack);
+  if (r < 0) return r;
+  if (out.status == RBX1_BAD_VERSION || out.proto_version != RBX1_PROTO_VERSION) {
+    spdlog::error("{}: protocol version mismatch: firmware {}, host {}", name_, out.proto_version,
+                  RBX1_PROTO_VERSION);
+    return -EPROTO;
+  }
+  if (out.status == RBX1_OK) {
+    std::lock_guard<std::mutex> lock(state_mu_);
+    next_seq_ = static_cast<uint8_t>(out.last_seq + 1);
+    hello_ = out;
+  }
+  return 0;
+}
+
+int Link::status(rbx1_status_resp& out) { return typed(RBX1_MSG_STATUS, nullptr, 0, out, rbx1_status_resp_unpack); }
+
+int Link::heartbeat(rbx1_heartbeat_resp& out) {
+  return typed(RBX1_MSG_HEARTBEAT, nullptr, 0, out, rbx1_heartbeat_resp_unpack);
+}
+
+int Link::move(const rbx1_move_req& req, rbx1_move_resp& out) {
+  uint8_t p[RBX1_MOVE_REQ_LEN];
+  uint8_t n = rbx1_move_req_pack(&req, p);
+  return typed(RBX1_MSG_MOVE, p, n, out, rbx1_move_resp_unpack);
+}
+
+int Link::gripper(const rbx1_gripper_req& req, rbx1_gripper_resp& out) {
+  uint8_t p[RBX1_GRIPPER_REQ_LEN];
+  uint8_t n = rbx1_gripper_req_pack(&req, p);
+  return typed(RBX1_MSG_GRIPPER, p, n, out, rbx1_gripper_resp_unpack);
+}
+
+int Link::home(uint8_t joint_mask, rbx1_home_resp& out) {
+  rbx1_home_req req{joint_mask};
+  uint8_t p[RBX1_HOME_REQ_LEN];
+  uint8_t n = rbx1_home_req_pack(&req, p);
+  return typed(RBX1_MSG_HOME, p, n, out, rbx1_home_resp_unpack);
+}
+
+int Link::stop(rbx1_stop_resp& out) { return typed(RBX1_MSG_STOP, nullptr, 0, out, rbx1_stop_resp_unpack); }
+
+int Link::clear_fault(rbx1_clear_fault_resp& out) {
+  return typed(RBX1_MSG_CLEAR_FAULT, nullptr, 0, out, rbx1_clear_fault_resp_unpack);
+}
+
+int Link::enable(bool on, rbx1_enable_resp& out) {
+  rbx1_enable_req req{static_cast<uint8_t>(on ? 1 : 0)};
+  uint8_t p[RBX1_ENABLE_REQ_LEN];
+  uint8_t n = rbx1_enable_req_pack(&req, p);
+  return typed(RBX1_MSG_ENABLE, p, n, out, rbx1_enable_resp_unpack);
+}
+
+int Link::set_position(const int32_t position[RBX1_JOINTS], rbx1_set_position_resp& out) {
+  rbx1_set_position_req req{};
+  std::memcpy(req.position, position, sizeof req.position);
+  uint8_t p[RBX1_SET_POSITION_REQ_LEN];
+  uint8_t n = rbx1_set_position_req_pack(&req, p);
+  return typed(RBX1_MSG_SET_POSITION, p, n, out, rbx1_set_position_resp_unpack);
+}
+
+int Link::config_get(uint8_t joint, uint8_t key, rbx1_config_get_resp& out) {
+  rbx1_config_get_req req{joint, key};
+  uint8_t p[RBX1_CONFIG_GET_REQ_LEN];
+  uint8_t n = rbx1_config_get_req_pack(&req, p);
+  return typed(RBX1_MSG_CONFIG_GET, p, n, out, rbx1_config_get_resp_unpack);
+}
+
+int Link::config_set(uint8_t joint, uint8_t key, int32_t value, rbx1_config_set_resp& out) {
+  rbx1_config_set_req req{joint, key, value};
+  uint8_t p[RBX1_CONFIG_SET_REQ_LEN];
+  uint8_t n = rbx1_config_set_req_pack(&req, p);
+  return typed(RBX1_MSG_CONFIG_SET, p, n, out, rbx1_config_set_resp_unpack);
+}
+
+int Link::config_reset(rbx1_config_reset_resp& out) {
+  return typed(RBX1_MSG_CONFIG_RESET, nullptr, 0, out, rbx1_config_reset_resp_unpack);
+}
+
+int Link::estop(rbx1_estop_resp& out) {
+  // Not request_mu_: the frame must not wait behind an outstanding request.
+  std::lock_guard<std::mutex> lock(estop_mu_);
+  Waiter w;
+  w.type = RBX1_MSG_ESTOP;
+  {
+    std::lock_guard<std::mutex> state(state_mu_);
+    if (!connected_) return down_error();
+    w.seq = next_seq_++;
+  }
+  uint8_t frame[RBX1_MAX_FRAME];
+  size_t n = rbx1_frame_encode(frame, sizeof frame, w.seq, RBX1_MSG_ESTOP, nullptr, 0);
+  uint8_t resp[RBX1_MAX_PAYLOAD];
+  uint8_t resp_len = 0;
+  spdlog::warn("{}: ESTOP (seq {})", name_, w.seq);
+  int r = transact(estop_waiting_, w, frame, n, resp, resp_len);
+  if (r < 0) return r;
+  out = rbx1_estop_resp{};
+  if (rbx1_estop_resp_unpack(&out, resp, resp_len) != RBX1_OK) {
+    if (resp_len < 1) return -EBADMSG;
+    out.status = resp[0];
+  }
+  return 0;
+}
+
+int Link::estop() {
+  rbx1_estop_resp out{};
+  return estop(out);
+}
+
+int Link::heartbeat_if_due(int heartbeat_ms) {
+  {
+    std::lock_guard<std::mutex> lock(state_mu_);
+    if (Clock::now() - last_done_ < std::chrono::milliseconds(heartbeat_ms)) return 0;
+  }
+  rbx1_heartbeat_resp out{};
+  return heartbeat(out);
+}
+
+void Link::start_heartbeat(int period_ms) {
+  stop_heartbeat();
+  hb_stop_ = false;
+  hb_thread_ = std::thread([this, period_ms] {
+    std::unique_lock<std::mutex> lock(hb_mu_);
+    while (!hb_cv_.wait_for(lock, std::chrono::milliseconds(std::max(period_ms / 4, 5)), [&] { return hb_stop_; })) {
+      if (!connected_) continue;
+      lock.unlock();
+      int r = heartbeat_if_due(period_ms);
+      if (r < 0) spdlog::debug("{}: heartbeat failed: {}", name_, std::strerror(-r));
+      lock.lock();
+    }
+  });
+}
+
+void Link::stop_heartbeat() {
+  {
+    std::lock_guard<std::mutex> lock(hb_mu_);
+    hb_stop_ = true;
+  }
+  hb_cv_.notify_all();
+  if (hb_thread_.joinable()) hb_thread_.join();
+}
+
+LinkStats Link::stats() const {
+  LinkStats s;
+  s.requests = counters_.requests;
+  s.retransmissions = counters_.retransmissions;
+  s.timeouts = counters_.timeouts;
+  s.naks = counters_.naks;
+  s.stale = counters_.stale;
+  s.rejected = counters_.rejected;
+  s.link_down = counters_.link_down;
+  s.reconnects = counters_.reconnects;
+  s.bytes_sent = counters_.bytes_sent;
+  s.bytes_received = counters_.bytes_received;
+  return s;
+}
+
+uint8_t Link::next_seq() const {
+  std::lock_guard<std::mutex> lock(state_mu_);
+  return next_seq_;
+}
+
+}  // namespace rbx1::link

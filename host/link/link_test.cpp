@@ -1,0 +1,305 @@
+// link_test.cpp - Link against a scripted fake firmware on a pty: retransmission, NAK, corruption, duplicates,
+// link down, e-stop while a request waits, reconnect after the port vanishes and returns.
+#include "link.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <future>
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include "fake_peer.hpp"
+
+using namespace std::chrono;
+using rbx1::link::Link;
+using rbx1::link::test::FakePeer;
+
+namespace {
+
+int64_t ms_since(steady_clock::time_point t0) {
+  return duration_cast<milliseconds>(steady_clock::now() - t0).count();
+}
+
+// All frames the peer received with this SEQ.
+std::vector<FakePeer::Received> with_seq(const FakePeer& peer, uint8_t seq) {
+  std::vector<FakePeer::Received> out;
+  for (const auto& r : peer.received())
+    if (r.seq == seq) out.push_back(r);
+  return out;
+}
+
+rbx1_move_req some_move(int32_t base) {
+  rbx1_move_req m{};
+  for (int j = 0; j < RBX1_JOINTS; ++j) m.target[j] = base + j;
+  m.duration_ms = 250;
+  return m;
+}
+
+struct LinkTest : ::testing::Test {
+  FakePeer peer;
+  Link link;
+  void SetUp() override {
+    std::string error;
+    ASSERT_EQ(link.open(peer.slave_path(), 115200, error), 0) << error;
+  }
+};
+
+}  // namespace
+
+TEST_F(LinkTest, HelloContinuesFromLastSeq) {
+  EXPECT_EQ(link.firmware().joints, 6);
+  EXPECT_EQ(link.firmware().fw_minor, 9);
+  EXPECT_EQ(link.next_seq(), 42);  // the peer's last_seq was 41
+  rbx1_status_resp s{};
+  ASSERT_EQ(link.status(s), 0);
+  EXPECT_EQ(s.status, RBX1_OK);
+  EXPECT_EQ(s.position[5], 2500);
+  EXPECT_EQ(peer.received().back().seq, 42);
+  EXPECT_EQ(link.stats().retransmissions, 0u);
+}
+
+TEST_F(LinkTest, EveryTypedHelperGetsItsResponse) {
+  rbx1_move_resp mv{};
+  ASSERT_EQ(link.move(some_move(100), mv), 0);
+  EXPECT_EQ(mv.queue_free, 7);
+  rbx1_gripper_resp gr{};
+  ASSERT_EQ(link.gripper({1500, 100}, gr), 0);
+  rbx1_config_get_resp cg{};
+  ASSERT_EQ(link.config_get(3, RBX1_KEY_ACCEL, cg), 0);
+  EXPECT_EQ(cg.value, 304);
+  rbx1_heartbeat_resp hb{};
+  rbx1_home_resp ho{};
+  rbx1_stop_resp st{};
+  rbx1_clear_fault_resp cf{};
+  rbx1_enable_resp en{};
+  rbx1_set_position_resp sp{};
+  rbx1_config_set_resp cs{};
+  rbx1_config_reset_resp cr{};
+  int32_t pos[RBX1_JOINTS] = {1, 2, 3, 4, 5, 6};
+  EXPECT_EQ(link.heartbeat(hb), 0);
+  EXPECT_EQ(link.home(0, ho), 0);
+  EXPECT_EQ(link.stop(st), 0);
+  EXPECT_EQ(link.clear_fault(cf), 0);
+  EXPECT_EQ(link.enable(true, en), 0);
+  EXPECT_EQ(link.set_position(pos, sp), 0);
+  EXPECT_EQ(link.config_set(RBX1_GLOBAL_JOINT, RBX1_KEY_HEARTBEAT_MS, 500, cs), 0);
+  EXPECT_EQ(link.config_reset(cr), 0);
+  EXPECT_EQ(link.estop(), 0);
+  rbx1_status_resp s{};
+  ASSERT_EQ(link.status(s), 0);
+  EXPECT_EQ(s.moves_done, 2);
+  for (uint8_t t = RBX1_MSG_HELLO; t <= RBX1_MSG_CONFIG_RESET; ++t) EXPECT_GE(peer.executed(t), 1) << int(t);
+  EXPECT_EQ(link.stats().requests, 14u);  // HELLO + 13 above
+}
+
+TEST_F(LinkTest, RetransmitsTheSameBytesOnSilence) {
+  peer.drop_next = 2;
+  uint8_t seq = link.next_seq();
+  auto t0 = steady_clock::now();
+  rbx1_move_resp r{};
+  ASSERT_EQ(link.move(some_move(5), r), 0);
+  int64_t took = ms_since(t0);
+  EXPECT_GE(took, 190);  // two 100 ms timeouts
+  EXPECT_LT(took, 400);
+  auto frames = with_seq(peer, seq);
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_EQ(frames[0].crc, frames[1].crc);
+  EXPECT_EQ(frames[0].crc, frames[2].crc);
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 1);
+  EXPECT_EQ(link.stats().retransmissions, 2u);
+  EXPECT_EQ(link.stats().timeouts, 2u);
+}
+
+TEST_F(LinkTest, RetransmitsAtOnceOnNak) {
+  peer.nak_next = 3;
+  uint8_t seq = link.next_seq();
+  auto t0 = steady_clock::now();
+  rbx1_move_resp r{};
+  ASSERT_EQ(link.move(some_move(7), r), 0);
+  EXPECT_LT(ms_since(t0), 90);  // no timeout waited
+  EXPECT_EQ(with_seq(peer, seq).size(), 4u);
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 1);
+  EXPECT_EQ(link.stats().naks, 3u);
+  EXPECT_EQ(link.stats().retransmissions, 3u);
+  EXPECT_EQ(link.stats().timeouts, 0u);
+}
+
+TEST_F(LinkTest, CorruptResponseIsRetransmittedNotReExecuted) {
+  peer.corrupt_next = 1;
+  rbx1_move_resp r{};
+  ASSERT_EQ(link.move(some_move(9), r), 0);
+  EXPECT_EQ(r.queue_free, 7);
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 1);
+  EXPECT_EQ(peer.cached_replies(), 1);
+  EXPECT_EQ(link.stats().retransmissions, 1u);
+  EXPECT_GE(link.stats().rejected, 1u);
+  rbx1_status_resp s{};
+  ASSERT_EQ(link.status(s), 0);
+  EXPECT_EQ(s.moves_done, 1);
+}
+
+TEST_F(LinkTest, DuplicateAndStaleResponsesAreDiscarded) {
+  peer.duplicate = true;
+  peer.stale_first = true;
+  rbx1_move_resp r{};
+  for (int i = 0; i < 3; ++i) ASSERT_EQ(link.move(some_move(i * 10), r), 0);
+  rbx1_status_resp s{};
+  ASSERT_EQ(link.status(s), 0);
+  EXPECT_EQ(s.status, RBX1_OK);
+  EXPECT_EQ(s.moves_done, 3);  // the STATUS answer, not a late MOVE duplicate
+  std::this_thread::sleep_for(milliseconds(30));
+  // 4 requests: each had one stale response before and one duplicate after.
+  EXPECT_EQ(link.stats().stale, 8u);
+  EXPECT_EQ(link.stats().retransmissions, 0u);
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 3);
+}
+
+TEST_F(LinkTest, LinkDownAfterFiveRetransmissions) {
+  peer.drop_next = 1000;
+  uint8_t seq = link.next_seq();
+  auto t0 = steady_clock::now();
+  rbx1_status_resp s{};
+  EXPECT_EQ(link.status(s), -ETIMEDOUT);
+  int64_t took = ms_since(t0);
+  EXPECT_GE(took, 590);
+  EXPECT_LT(took, 900);
+  EXPECT_EQ(with_seq(peer, seq).size(), 6u);
+  EXPECT_EQ(link.stats().retransmissions, 5u);
+  EXPECT_EQ(link.stats().link_down, 1u);
+  // The link recovers when the peer answers again; the next request has a new SEQ.
+  peer.drop_next = 0;
+  ASSERT_EQ(link.status(s), 0);
+  EXPECT_EQ(peer.received().back().seq, static_cast<uint8_t>(seq + 1));
+}
+
+TEST_F(LinkTest, ConfiguredTimingIsUsed) {
+  link.set_timing(30, 2);
+  peer.drop_next = 1000;
+  auto t0 = steady_clock::now();
+  rbx1_status_resp s{};
+  EXPECT_EQ(link.status(s), -ETIMEDOUT);
+  EXPECT_LT(ms_since(t0), 200);
+  EXPECT_EQ(link.stats().retransmissions, 2u);
+}
+
+TEST_F(LinkTest, EstopGoesOutWhileARequestWaits) {
+  link.set_timing(300, 5);
+  peer.delay_type = RBX1_MSG_MOVE;
+  peer.delay_ms = 150;
+  auto move = std::async(std::launch::async, [&] {
+    rbx1_move_resp r{};
+    return link.move(some_move(1), r);
+  });
+  std::this_thread::sleep_for(milliseconds(30));  // the MOVE is on the wire, its response held
+  auto t0 = steady_clock::now();
+  rbx1_estop_resp e{};
+  ASSERT_EQ(link.estop(e), 0);
+  EXPECT_EQ(e.status, RBX1_OK);
+  EXPECT_LT(ms_since(t0), 50);
+  EXPECT_EQ(move.wait_for(milliseconds(0)), std::future_status::timeout);  // still outstanding
+  EXPECT_EQ(move.get(), 0);
+  EXPECT_EQ(peer.executed(RBX1_MSG_ESTOP), 1);
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 1);
+  EXPECT_LT(peer.sent_at(RBX1_MSG_ESTOP), peer.sent_at(RBX1_MSG_MOVE));
+  EXPECT_EQ(link.stats().retransmissions, 0u);
+}
+
+TEST_F(LinkTest, EstopFromManyThreads) {
+  std::vector<std::future<int>> f;
+  for (int i = 0; i < 4; ++i) f.push_back(std::async(std::launch::async, [&] { return link.estop(); }));
+  rbx1_status_resp s{};
+  EXPECT_EQ(link.status(s), 0);
+  for (auto& x : f) EXPECT_EQ(x.get(), 0);
+  EXPECT_EQ(peer.executed(RBX1_MSG_ESTOP), 4);
+}
+
+TEST_F(LinkTest, HeartbeatOnlyWhenDue) {
+  EXPECT_EQ(link.heartbeat_if_due(10000), 0);
+  EXPECT_EQ(peer.executed(RBX1_MSG_HEARTBEAT), 0);
+  link.start_heartbeat(40);
+  std::this_thread::sleep_for(milliseconds(230));
+  link.stop_heartbeat();
+  int n = peer.executed(RBX1_MSG_HEARTBEAT);
+  EXPECT_GE(n, 3);
+  EXPECT_LE(n, 6);
+}
+
+TEST(Link, VersionMismatchIsAClearError) {
+  FakePeer peer;
+  peer.proto_version = 2;
+  Link link;
+  std::string error;
+  EXPECT_EQ(link.open(peer.slave_path(), 115200, error), -EPROTO);
+  EXPECT_NE(error.find("protocol version 2"), std::string::npos) << error;
+  EXPECT_NE(error.find(peer.slave_path()), std::string::npos) << error;
+  EXPECT_FALSE(link.connected());
+}
+
+TEST(Link, MissingPortNamesThePath) {
+  Link link;
+  std::string error;
+  EXPECT_EQ(link.open("/nonexistent/ttyRBX1", 115200, error), -ENOENT);
+  EXPECT_EQ(error.rfind("/nonexistent/ttyRBX1: ", 0), 0u) << error;
+  rbx1_status_resp s{};
+  EXPECT_EQ(link.status(s), -ENOTCONN);
+  EXPECT_EQ(link.estop(), -ENOTCONN);
+}
+
+TEST(Link, SilentPeerFailsTheHandshake) {
+  FakePeer peer;
+  peer.drop_next = 1000;
+  Link link;
+  link.set_timing(20, 1);
+  std::string error;
+  EXPECT_EQ(link.open(peer.slave_path(), 115200, error), -ETIMEDOUT);
+  EXPECT_NE(error.find("no HELLO response"), std::string::npos) << error;
+}
+
+// The port is a symlink (as a udev rule makes one); the device behind it vanishes and a new one appears.
+TEST(Link, ReconnectsWhenThePortReturns) {
+  auto dir = std::filesystem::temp_directory_path() / ("rbx1-link-" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  auto port = dir / "ttyRBX1";
+  std::filesystem::remove(port);
+  auto a = std::make_unique<FakePeer>();
+  std::filesystem::create_symlink(a->slave_path(), port);
+  Link link;
+  std::string error;
+  ASSERT_EQ(link.open(port, 250000, error), 0) << error;
+  rbx1_move_resp mr{};
+  ASSERT_EQ(link.move(some_move(3), mr), 0);
+
+  FakePeer b;  // made first, so it cannot reuse the vanished device's /dev/pts number
+  b.last_seq = 200;
+  // The USB device vanishes, and udev removes its symlink (a stale path could lead to an unrelated pty).
+  std::filesystem::remove(port);
+  a->hang_up();
+  auto t0 = steady_clock::now();
+  while (link.connected() && ms_since(t0) < 1000) std::this_thread::sleep_for(milliseconds(5));
+  EXPECT_FALSE(link.connected());
+  EXPECT_LT(ms_since(t0), 200);  // seen without a request outstanding
+  rbx1_status_resp s{};
+  int r = link.status(s);
+  EXPECT_TRUE(r == -ENODEV || r == -EIO) << r;
+  EXPECT_EQ(link.reconnect(error), -ENOENT);
+  EXPECT_EQ(error.rfind(port.string() + ": ", 0), 0u) << error;
+
+  t0 = steady_clock::now();
+  std::thread swap([&] {
+    std::this_thread::sleep_for(milliseconds(150));
+    auto tmp = dir / "new";
+    std::filesystem::create_symlink(b.slave_path(), tmp);
+    std::filesystem::rename(tmp, port);
+  });
+  EXPECT_EQ(link.wait_reconnect(2000, error), 0) << error;
+  EXPECT_GE(ms_since(t0), 140);  // only once the path leads to a device again
+  swap.join();
+  EXPECT_EQ(link.next_seq(), 201);
+  ASSERT_EQ(link.status(s), 0);
+  EXPECT_EQ(b.received().back().seq, 201);
+  EXPECT_EQ(b.executed(RBX1_MSG_HELLO), 1);
+  EXPECT_EQ(link.stats().reconnects, 1u);
+  link.close();
+  std::filesystem::remove_all(dir);
+}

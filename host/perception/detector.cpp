@@ -1,0 +1,46 @@
+// detector.cpp - runs the paper's steps I-V per object layer (each on its own ROI).
+#include "detector.hpp"
+
+#include "background.hpp"
+#include "geometry.hpp"
+
+namespace rbx1::vision {
+
+bool detect(const cv::Mat& gray, const cv::Mat& background_gray, const DetectorOptions& opt, const Library* lib,
+            Detection& out, std::string& error) {
+  out = Detection{};
+  out.size = gray.size();
+  Contrast con;
+  if (!background_gray.empty()) {
+    if (!contrast_from_background(gray, background_gray, opt.objects, opt.isolation.min_contrast, con, error)) return false;
+  } else {
+    contrast_auto(gray, opt.objects, opt.isolation.min_contrast, con);
+  }
+  out.sign = con.sign;
+  if (!isolate(con, opt.isolation, out.isolation, error)) return false;
+  for (Layer& layer : out.isolation.layers) {
+    DetectedObject o;
+    if (!measure_geometry(layer, o.geometry)) continue;
+    o.pose = estimate_pose(o.geometry, opt.pose);
+    RayHits hits = cast_rays(o.geometry, opt.grip.lines);
+    o.grip = choose_grip(o.geometry, hits, layer.label, out.isolation.labels, out.isolation.obstacle, opt.grip, o.chord_phi,
+                         o.chord_d);
+    std::vector<double> profile = identity_profile(o.geometry, o.pose, hits, opt.grip.lines);
+    if (lib && !lib->entries.empty()) {
+      std::optional<double> cm2;
+      if (opt.px_per_cm > 0) cm2 = o.geometry.area_px / (opt.px_per_cm * opt.px_per_cm);
+      Match m = identify(*lib, profile, o.geometry.area_px, cm2, o.pose.elongation, opt.match);
+      if (m.entry >= 0 && m.score >= opt.match.threshold) {
+        o.identity.label = lib->entries[size_t(m.entry)].name;
+        o.identity.score = m.score;
+      }
+    }
+    o.layer = std::move(layer);
+    o.index = int(out.objects.size()) + 1;
+    out.objects.push_back(std::move(o));
+    out.profiles.push_back(std::move(profile));
+  }
+  return true;
+}
+
+}  // namespace rbx1::vision

@@ -1,0 +1,39 @@
+// detector.hpp - the whole method on one frame: isolation, geometry, pose, identification, grip (pixels only).
+#pragma once
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "grip.hpp"
+#include "identify.hpp"
+#include "isolate.hpp"
+#include "library.hpp"
+#include "pose.hpp"
+#include "types.hpp"
+
+namespace rbx1::vision {
+
+struct DetectorOptions {
+  Polarity objects = Polarity::Auto;
+  IsolationOptions isolation;
+  PoseOptions pose;
+  GripOptions grip;
+  MatchOptions match;
+  double px_per_cm = 0;  // when > 0, identification compares sizes in cm^2 (entries taught with a scale)
+};
+
+struct Detection {
+  cv::Size size;
+  int sign = -1;                       // polarity used: -1 dark objects, +1 light
+  Isolation isolation;                 // label image (neighbours for finger clearance)
+  std::vector<DetectedObject> objects;
+  std::vector<std::vector<double>> profiles;  // identity profile per object
+};
+
+// gray: 8-bit frame; background_gray: empty for automatic modelling. lib may be null (no identification).
+// false + error for a background of another size or an all-foreground frame.
+bool detect(const cv::Mat& gray, const cv::Mat& background_gray, const DetectorOptions& opt, const Library* lib,
+            Detection& out, std::string& error);
+
+}  // namespace rbx1::vision

@@ -1,0 +1,117 @@
+// geometry.cpp - area moments, sub-pixel outer contour (the edge points) and the sorted r-theta profile.
+#include "geometry.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include <opencv2/imgproc.hpp>
+
+namespace rbx1::vision {
+
+float sample(const cv::Mat& img, double x, double y) {
+  x = std::clamp(x, 0.0, double(img.cols - 1));
+  y = std::clamp(y, 0.0, double(img.rows - 1));
+  int x0 = std::min(int(x), img.cols - 2 < 0 ? 0 : img.cols - 2), y0 = std::min(int(y), img.rows - 2 < 0 ? 0 : img.rows - 2);
+  int x1 = std::min(x0 + 1, img.cols - 1), y1 = std::min(y0 + 1, img.rows - 1);
+  float fx = float(x - x0), fy = float(y - y0);
+  const float* r0 = img.ptr<float>(y0);
+  const float* r1 = img.ptr<float>(y1);
+  return (r0[x0] * (1 - fx) + r0[x1] * fx) * (1 - fy) + (r1[x0] * (1 - fx) + r1[x1] * fx) * fy;
+}
+
+namespace {
+
+float at(const cv::Mat& s, int x, int y) {
+  return s.at<float>(std::clamp(y, 0, s.rows - 1), std::clamp(x, 0, s.cols - 1));
+}
+
+// Sobel gradient of the layer at one pixel, scaled to units per pixel (paper Eq. 1).
+cv::Point2d gradient(const cv::Mat& s, int x, int y) {
+  double gx = (at(s, x + 1, y - 1) - at(s, x - 1, y - 1)) + 2 * (at(s, x + 1, y) - at(s, x - 1, y)) +
+              (at(s, x + 1, y + 1) - at(s, x - 1, y + 1));
+  double gy = (at(s, x - 1, y + 1) - at(s, x - 1, y - 1)) + 2 * (at(s, x, y + 1) - at(s, x, y - 1)) +
+              (at(s, x + 1, y + 1) - at(s, x + 1, y - 1));
+  return {gx / 8, gy / 8};
+}
+
+// Where the layer crosses its half level along the line p + t n, t in [-2, 2], nearest to p.
+double half_level_offset(const cv::Mat& s, cv::Point2d p, cv::Point2d n) {
+  constexpr int kSteps = 8;  // samples every 0.25 px each way
+  float prev = sample(s, p.x, p.y) - 0.5f;
+  if (prev == 0) return 0;
+  double best = 0;
+  bool found = false;
+  for (int dir : {-1, +1}) {
+    float a = prev;
+    for (int i = 1; i <= kSteps; ++i) {
+      double t = dir * 0.25 * i;
+      float b = sample(s, p.x + t * n.x, p.y + t * n.y) - 0.5f;
+      if ((a < 0) != (b < 0) || b == 0) {
+        double t0 = dir * 0.25 * (i - 1);
+        double tc = t0 + (t - t0) * (a / (a - b));
+        if (!found || std::abs(tc) < std::abs(best)) best = tc;
+        found = true;
+        break;
+      }
+      a = b;
+    }
+  }
+  return found ? best : 0;
+}
+
+}  // namespace
+
+bool measure_geometry(const Layer& layer, Geometry& out) {
+  const cv::Mat& s = layer.soft;
+  cv::Moments m = cv::moments(s, false);
+  if (m.m00 <= 0) return false;
+  out.area_px = m.m00;
+  out.centroid = {m.m10 / m.m00 + layer.roi.x, m.m01 / m.m00 + layer.roi.y};
+  out.mu20 = m.mu20 / m.m00;
+  out.mu02 = m.mu02 / m.m00;
+  out.mu11 = m.mu11 / m.m00;
+
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(layer.inside.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+  if (contours.empty()) return false;
+  const auto& c = *std::max_element(contours.begin(), contours.end(),
+                                    [](const auto& a, const auto& b) { return a.size() < b.size(); });
+  out.contour.clear();
+  out.contour.reserve(c.size());
+  for (const cv::Point& p : c) {
+    cv::Point2d g = gradient(s, p.x, p.y);
+    double mag = std::hypot(g.x, g.y);
+    if (mag <= kEdgeThreshold) continue;  // Eq. 2 against t: not an edge pixel
+    cv::Point2d n = g / mag;
+    double t = half_level_offset(s, cv::Point2d(p), n);
+    out.contour.push_back({p.x + t * n.x + layer.roi.x, p.y + t * n.y + layer.roi.y, 1});
+  }
+  const size_t n = out.contour.size();
+  if (n < 3) return false;
+  // Each point stands for half of its two neighbouring segments: the scatter becomes a line integral.
+  for (size_t i = 0; i < n; ++i) {
+    const EdgePoint& a = out.contour[(i + n - 1) % n];
+    const EdgePoint& b = out.contour[i];
+    const EdgePoint& c2 = out.contour[(i + 1) % n];
+    out.contour[i].w = 0.5 * (std::hypot(b.x - a.x, b.y - a.y) + std::hypot(c2.x - b.x, c2.y - b.y));
+  }
+  // r-theta profile (Eq. 3-4) around the centroid, sorted by angle in [0, 2pi).
+  std::vector<std::pair<double, double>> tr(n);
+  for (size_t i = 0; i < n; ++i) {
+    double dx = out.contour[i].x - out.centroid.x, dy = out.contour[i].y - out.centroid.y;
+    double th = std::atan2(dy, dx);
+    if (th < 0) th += 2 * M_PI;
+    tr[i] = {th, std::hypot(dx, dy)};
+  }
+  std::sort(tr.begin(), tr.end());
+  out.theta.resize(n);
+  out.r.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    out.theta[i] = tr[i].first;
+    out.r[i] = tr[i].second;
+  }
+  return true;
+}
+
+}  // namespace rbx1::vision

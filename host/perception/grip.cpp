@@ -1,0 +1,171 @@
+// grip.cpp - chords through the centroid from the sub-pixel contour, the minimum opening and finger clearance.
+#include "grip.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace rbx1::vision {
+namespace {
+
+double cross(double ax, double ay, double bx, double by) { return ax * by - ay * bx; }
+
+// Line parameters (t) where both contacts are, from the two opposite rays of line k.
+bool line_from_rays(const RayHits& h, int k, int lines, double& tmin, double& tmax) {
+  double fmax = h.rmax[size_t(k)], fmin = h.rmin[size_t(k)];
+  double bmax = h.rmax[size_t(k + lines)], bmin = h.rmin[size_t(k + lines)];
+  if (fmax < 0 && bmax < 0) return false;
+  tmax = fmax >= 0 ? fmax : -bmin;
+  tmin = bmax >= 0 ? -bmax : fmin;
+  return true;
+}
+
+// Does a finger (width across the line, depth outward) at contact q, pushing along -out, sit on another object?
+bool finger_blocked(cv::Point2d q, cv::Point2d out, int own, const cv::Mat& labels, const std::vector<uint8_t>& obstacle,
+                    const GripOptions& opt) {
+  if (opt.finger_width_px <= 0 || opt.finger_depth_px <= 0 || labels.empty()) return false;
+  cv::Point2d across(-out.y, out.x);
+  const double hw = opt.finger_width_px / 2;
+  for (double a = 1; a <= opt.finger_depth_px; a += 1) {
+    for (double b = -hw; b <= hw + 1e-9; b += 1) {
+      cv::Point2d p = q + a * out + b * across;
+      int x = int(std::lround(p.x)), y = int(std::lround(p.y));
+      if (x < 0 || y < 0 || x >= labels.cols || y >= labels.rows) continue;
+      int l = labels.at<int>(y, x);
+      if (l != 0 && l != own && size_t(l) < obstacle.size() && obstacle[size_t(l)]) return true;
+    }
+  }
+  return false;
+}
+
+Grip make_grip(const Geometry& g, double phi, double tmin, double tmax) {
+  Grip gr;
+  cv::Point2d u(std::cos(phi), std::sin(phi));
+  cv::Point2d a = g.centroid + tmin * u, b = g.centroid + tmax * u;
+  double deg = phi * 180 / M_PI;  // [0, 180)
+  if (deg <= 90) {
+    gr.p1 = a, gr.p2 = b, gr.angle_deg = deg;
+  } else {
+    gr.p1 = b, gr.p2 = a, gr.angle_deg = deg - 180;
+  }
+  gr.opening_px = tmax - tmin;
+  return gr;
+}
+
+}  // namespace
+
+RayHits cast_rays(const Geometry& g, int lines) {
+  const int rays = 2 * lines;
+  const double step = M_PI / lines;
+  RayHits h;
+  h.rmax.assign(size_t(rays), -1);
+  h.rmin.assign(size_t(rays), -1);
+  const auto& c = g.contour;
+  const size_t n = c.size();
+  for (size_t i = 0; i < n; ++i) {
+    double ax = c[i].x - g.centroid.x, ay = c[i].y - g.centroid.y;
+    double bx = c[(i + 1) % n].x - g.centroid.x, by = c[(i + 1) % n].y - g.centroid.y;
+    double ta = std::atan2(ay, ax);
+    double dt = std::remainder(std::atan2(by, bx) - ta, 2 * M_PI);
+    if (std::abs(dt) > 0.75 * M_PI) continue;  // the segment passes over the centroid itself
+    double lo = std::min(ta, ta + dt), hi = std::max(ta, ta + dt);
+    double dx = bx - ax, dy = by - ay;
+    // Half-open angular interval, so a ray through a vertex is counted once.
+    int j0 = int(std::ceil(lo / step)), j1 = int(std::ceil(hi / step)) - 1;
+    for (int j = j0; j <= j1; ++j) {
+      double psi = j * step;
+      double ux = std::cos(psi), uy = std::sin(psi);
+      double den = cross(ux, uy, dx, dy);
+      if (std::abs(den) < 1e-12) continue;
+      double r = cross(ax, ay, dx, dy) / den;
+      if (r < 0) continue;
+      size_t k = size_t(((j % rays) + rays) % rays);
+      if (h.rmax[k] < r) h.rmax[k] = r;
+      if (h.rmin[k] < 0 || h.rmin[k] > r) h.rmin[k] = r;
+    }
+  }
+  return h;
+}
+
+bool chord_at(const Geometry& g, double phi, double& tmin, double& tmax) {
+  const double ux = std::cos(phi), uy = std::sin(phi);
+  const auto& c = g.contour;
+  const size_t n = c.size();
+  bool any = false;
+  for (size_t i = 0; i < n; ++i) {
+    double ax = c[i].x - g.centroid.x, ay = c[i].y - g.centroid.y;
+    double dx = c[(i + 1) % n].x - c[i].x, dy = c[(i + 1) % n].y - c[i].y;
+    double den = cross(ux, uy, dx, dy);
+    if (std::abs(den) < 1e-12) continue;
+    double s = cross(ax, ay, ux, uy) / den;
+    if (s < 0 || s >= 1) continue;
+    double t = cross(ax, ay, dx, dy) / den;
+    if (!any) tmin = tmax = t;
+    tmin = std::min(tmin, t), tmax = std::max(tmax, t);
+    any = true;
+  }
+  return any;
+}
+
+Grip choose_grip(const Geometry& g, const RayHits& hits, int own_label, const cv::Mat& labels,
+                 const std::vector<uint8_t>& obstacle, const GripOptions& opt, std::vector<double>& phi,
+                 std::vector<double>& d) {
+  const int lines = opt.lines;
+  const double step = M_PI / lines;
+  phi.clear(), d.clear();
+  std::vector<double> lo(static_cast<size_t>(lines)), hi(static_cast<size_t>(lines));
+  std::vector<int> order;
+  for (int k = 0; k < lines; ++k) {
+    double tmin = 0, tmax = 0;
+    if (!line_from_rays(hits, k, lines, tmin, tmax)) continue;
+    lo[size_t(k)] = tmin, hi[size_t(k)] = tmax;
+    phi.push_back(k * step);
+    d.push_back(tmax - tmin);
+    order.push_back(k);
+  }
+  if (order.empty()) return {};
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return hi[size_t(a)] - lo[size_t(a)] < hi[size_t(b)] - lo[size_t(b)]; });
+
+  auto clear_at = [&](double ph, double tmin, double tmax) {
+    cv::Point2d u(std::cos(ph), std::sin(ph));
+    return !finger_blocked(g.centroid + tmax * u, u, own_label, labels, obstacle, opt) &&
+           !finger_blocked(g.centroid + tmin * u, -u, own_label, labels, obstacle, opt);
+  };
+  int best = -1;
+  for (int k : order) {
+    if (clear_at(k * step, lo[size_t(k)], hi[size_t(k)])) {
+      best = k;
+      break;
+    }
+  }
+  bool clear = best >= 0;
+  if (!clear) best = order.front();
+
+  // Refine between the neighbouring sampled lines (golden section on the exact chord).
+  double a = (best - 1) * step, b = (best + 1) * step;
+  auto chord = [&](double ph, double& tmin, double& tmax) { return chord_at(g, ph, tmin, tmax) ? tmax - tmin : 1e300; };
+  const double gr = (std::sqrt(5.0) - 1) / 2;
+  double x1 = b - gr * (b - a), x2 = a + gr * (b - a), t0, t1;
+  double f1 = chord(x1, t0, t1), f2 = chord(x2, t0, t1);
+  for (int it = 0; it < 24; ++it) {
+    if (f1 < f2) b = x2, x2 = x1, f2 = f1, x1 = b - gr * (b - a), f1 = chord(x1, t0, t1);
+    else a = x1, x1 = x2, f1 = f2, x2 = a + gr * (b - a), f2 = chord(x2, t0, t1);
+  }
+  double ph = 0.5 * (a + b), tmin = 0, tmax = 0;
+  double coarse_phi = best * step, cmin = lo[size_t(best)], cmax = hi[size_t(best)];
+  Grip out;
+  if (chord_at(g, ph, tmin, tmax) && tmax - tmin <= cmax - cmin && (!clear || clear_at(ph, tmin, tmax))) {
+    if (ph < 0 || ph >= M_PI) {  // the same line with the direction reversed
+      ph += ph < 0 ? M_PI : -M_PI;
+      std::swap(tmin, tmax);
+      tmin = -tmin, tmax = -tmax;
+    }
+    out = make_grip(g, ph, tmin, tmax);
+  } else {
+    out = make_grip(g, coarse_phi, cmin, cmax);
+  }
+  out.clear = clear;
+  return out;
+}
+
+}  // namespace rbx1::vision

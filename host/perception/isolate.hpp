@@ -1,0 +1,32 @@
+// isolate.hpp - object isolation (paper step I): threshold the contrast, clean, region-grow, one layer per object.
+#pragma once
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "background.hpp"
+#include "types.hpp"
+
+namespace rbx1::vision {
+
+struct IsolationOptions {
+  double min_contrast = 12;      // grey levels; the threshold is max(this, noise_k * noise sigma)
+  double noise_k = 4.5;
+  int min_area_px = 40;          // smaller regions are specks
+  double max_foreground = 0.80;  // a larger foreground fraction means a wrong background or no table in view
+  int margin_px = 4;             // ROI margin around each object (covers the blurred edge band)
+};
+
+struct Isolation {
+  cv::Mat labels;                 // CV_32S frame: 0 background, else a connected region's id
+  std::vector<uint8_t> obstacle;  // per label: 1 when the region is big enough to block a finger
+  std::vector<Layer> layers;      // the kept objects, in detection order (top to bottom, left to right)
+  double threshold = 0;
+  int specks = 0, border = 0;     // regions dropped
+};
+
+// false + error only for a frame that is nearly all foreground.
+bool isolate(const Contrast& contrast, const IsolationOptions& opt, Isolation& out, std::string& error);
+
+}  // namespace rbx1::vision

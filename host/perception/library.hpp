@@ -1,0 +1,31 @@
+// library.hpp - the library of taught objects (rbx1 teach): JSON file, validated on load, written atomically.
+#pragma once
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace rbx1::vision {
+
+inline constexpr int kProfileBins = 180;  // identity profile: outermost r every 2 degrees from the axis
+
+struct LibraryEntry {
+  std::string name;
+  bool mirror_ok = false;            // a mirror image of the object is the same object (flipped part)
+  std::vector<double> profile;       // kProfileBins values of r_out / sqrt(area), from the reference orientation
+  double area_px = 0;
+  std::optional<double> area_cm2;    // when taught with a calibration
+  double elongation = 1;
+};
+
+struct Library {
+  std::vector<LibraryEntry> entries;
+};
+
+// A missing file is an empty library only when allow_missing. false + error "PATH: reason" otherwise.
+bool load_library(const std::string& path, Library& out, std::string& error, bool allow_missing = false);
+// Writes PATH.tmp then renames it over PATH, so readers never see a half-written library.
+bool save_library(const std::string& path, const Library& lib, std::string& error);
+// Adds or replaces (same name) an entry.
+void upsert(Library& lib, LibraryEntry entry);
+
+}  // namespace rbx1::vision

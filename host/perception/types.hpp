@@ -1,0 +1,66 @@
+// types.hpp - the data one object carries through the pipeline: its layer, geometry, pose, identity and grip.
+#pragma once
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace rbx1::vision {
+
+enum class Polarity { Auto, Dark, Light };
+
+// The paper's per-object layer, cut to the object's bounding box (ROI) instead of a full-frame array.
+struct Layer {
+  int label = 0;     // component id in the frame's label image
+  cv::Rect roi;      // in frame pixels
+  cv::Mat soft;      // CV_32F roi: 1 inside, 0 outside, the covered fraction on the edge band
+  cv::Mat inside;    // CV_8U roi: 255 where soft >= 0.5 (the object's binary layer)
+};
+
+// An edge point (paper Eq. 1-2) moved to its sub-pixel position, in frame pixels; w = contour length it stands for.
+struct EdgePoint {
+  double x = 0, y = 0, w = 1;
+};
+
+struct Geometry {
+  cv::Point2d centroid;               // area centroid of the soft layer
+  double area_px = 0;                 // covered area (sum of the soft layer)
+  double mu20 = 0, mu02 = 0, mu11 = 0;  // central second moments of the area, per unit area
+  std::vector<EdgePoint> contour;     // outer contour, ordered, sub-pixel (these are the edge points)
+  std::vector<double> theta, r;       // r-theta profile (Eq. 3-4): edge points sorted by angle, theta in [0, 2pi)
+};
+
+struct Pose {
+  double orientation_deg = 0;   // principal axis, (-90, 90], +x towards +y
+  std::optional<double> slope, intercept;  // axis line y = slope x + intercept (none for a vertical axis)
+  double elongation = 1;        // sqrt of the eigenvalue ratio (= aspect ratio of a rectangle or ellipse)
+  bool elongated = false;
+};
+
+struct Grip {
+  cv::Point2d p1, p2;           // contact points; p1 -> p2 is the closing direction
+  double opening_px = 0;
+  double angle_deg = 0;         // direction p1 -> p2, (-90, 90]
+  bool clear = true;            // fingers do not land on another object
+  bool feasible = true;
+  std::optional<double> opening_cm;
+};
+
+struct Identity {
+  std::optional<std::string> label;
+  std::optional<double> score;  // best score, also when below the threshold (label null then)
+};
+
+struct DetectedObject {
+  int index = 0;  // detection order, 1-based
+  Layer layer;
+  Geometry geometry;
+  Pose pose;
+  Grip grip;
+  Identity identity;
+  std::vector<double> chord_phi, chord_d;  // D(phi) for phi in [0, pi): the gripper opening per closing direction
+  std::optional<cv::Point2d> centroid_cm;
+};
+
+}  // namespace rbx1::vision

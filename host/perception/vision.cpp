@@ -1,0 +1,178 @@
+// vision.cpp - Vision: loads the background, library and scale once, then turns frames into detections.
+#include "vision.hpp"
+
+#include <cmath>
+#include <cstdio>
+
+#include "image_io.hpp"
+
+namespace rbx1::vision {
+namespace {
+
+double round_to(double v, double q) { return std::round(v / q) * q; }
+nlohmann::json pt(cv::Point2d p, double q) { return {round_to(p.x, q), round_to(p.y, q)}; }
+
+}  // namespace
+
+bool parse_polarity(const std::string& text, Polarity& out) {
+  if (text == "auto") out = Polarity::Auto;
+  else if (text == "dark") out = Polarity::Dark;
+  else if (text == "light") out = Polarity::Light;
+  else return false;
+  return true;
+}
+
+void parse_vision_config(rbx1::config::Section v, VisionOptions& out) {
+  out.background_path = v.string("background", out.background_path);
+  std::string pol = v.string("objects", "auto");
+  if (!parse_polarity(pol, out.objects)) v.errors().add(v.path().empty() ? "objects" : v.path() + ".objects",
+                                                        "must be \"auto\", \"dark\" or \"light\", got \"" + pol + "\"");
+  out.library_path = v.string("library", out.library_path);
+  out.px_per_cm = v.number("px_per_cm", out.px_per_cm, 0, 1e5);
+  out.calibration_path = v.string("calibration", out.calibration_path);
+  out.gripper_max_cm = v.number("gripper_max_cm", out.gripper_max_cm, 0.1, 100);
+  out.finger_width_cm = v.number("finger_width_cm", out.finger_width_cm, 0, 20);
+  out.finger_depth_cm = v.number("finger_depth_cm", out.finger_depth_cm, 0, 20);
+  out.finger_width_px = v.number("finger_width_px", out.finger_width_px, 0, 1000);
+  out.finger_depth_px = v.number("finger_depth_px", out.finger_depth_px, 0, 1000);
+  out.min_area_px = int(v.integer("min_area_px", out.min_area_px, 1, 1'000'000));
+  out.match_threshold = v.number("match_threshold", out.match_threshold, 0, 1);
+  v.reject_unknown();
+}
+
+std::unique_ptr<Vision> Vision::create(const VisionOptions& opt, std::string& error) {
+  auto v = std::unique_ptr<Vision>(new Vision());
+  v->opt_ = opt;
+  if (opt.px_per_cm < 0 || !std::isfinite(opt.px_per_cm)) {
+    error = "px_per_cm must be positive";
+    return nullptr;
+  }
+  if (!(opt.gripper_max_cm > 0)) {
+    error = "gripper_max_cm must be positive";
+    return nullptr;
+  }
+  if (!opt.calibration_path.empty()) {
+    v->scale_ = scale_from_file(opt.calibration_path, error);
+    if (!v->scale_) return nullptr;
+  } else if (opt.px_per_cm > 0) {
+    v->scale_ = scale_from_px_per_cm(opt.px_per_cm);
+  }
+  if (!opt.background_path.empty()) {
+    cv::Mat bg;
+    if (!read_image(opt.background_path, bg, error)) return nullptr;
+    if (v->scale_) bg = v->scale_->undistort(bg);
+    v->background_ = to_gray8(bg);
+  }
+  if (!opt.library_path.empty()) {
+    if (!load_library(opt.library_path, v->library_, error)) return nullptr;
+    v->has_library_ = true;
+  }
+  DetectorOptions& d = v->det_;
+  d.objects = opt.objects;
+  d.isolation.min_area_px = opt.min_area_px;
+  d.match.threshold = opt.match_threshold;
+  return v;
+}
+
+bool Vision::run(const cv::Mat& frame, Detection& det, cv::Mat& processed, std::string& error) {
+  if (!check_frame(frame, error)) return false;
+  processed = scale_ ? scale_->undistort(frame) : frame;
+  cv::Mat gray = to_gray8(processed);
+  if (!background_.empty() && background_.size() != gray.size()) {
+    error = "background is " + std::to_string(background_.cols) + "x" + std::to_string(background_.rows) +
+            " but the frame is " + std::to_string(gray.cols) + "x" + std::to_string(gray.rows);
+    return false;
+  }
+  DetectorOptions d = det_;
+  cv::Point2d centre((gray.cols - 1) / 2.0, (gray.rows - 1) / 2.0);
+  if (scale_) {
+    double s = scale_->px_per_cm_at(centre);
+    d.px_per_cm = s;
+    d.grip.finger_width_px = opt_.finger_width_cm * s;
+    d.grip.finger_depth_px = opt_.finger_depth_cm * s;
+  } else {
+    d.grip.finger_width_px = opt_.finger_width_px;
+    d.grip.finger_depth_px = opt_.finger_depth_px;
+  }
+  if (!detect(gray, background_, d, has_library_ ? &library_ : nullptr, det, error)) return false;
+  for (DetectedObject& o : det.objects) {
+    o.grip.feasible = o.grip.clear;
+    if (scale_) {
+      o.centroid_cm = scale_->to_cm(o.geometry.centroid);
+      o.grip.opening_cm = scale_->distance_cm(o.grip.p1, o.grip.p2);
+      if (*o.grip.opening_cm > opt_.gripper_max_cm) o.grip.feasible = false;
+    }
+  }
+  return true;
+}
+
+bool Vision::process(const cv::Mat& frame, nlohmann::json& result, std::string& error) {
+  Detection det;
+  cv::Mat processed;
+  if (!run(frame, det, processed, error)) return false;
+  result = to_json(det);
+  return true;
+}
+
+nlohmann::json Vision::to_json(const Detection& det) const {
+  using nlohmann::json;
+  json doc;
+  doc["image"] = {{"width", det.size.width}, {"height", det.size.height}};
+  cv::Point2d centre((det.size.width - 1) / 2.0, (det.size.height - 1) / 2.0);
+  doc["px_per_cm"] = scale_ ? json(round_to(scale_->px_per_cm_at(centre), 1e-4)) : json(nullptr);
+  doc["objects"] = json::array();
+  for (const DetectedObject& o : det.objects) {
+    json j;
+    j["index"] = o.index;
+    j["label"] = o.identity.label ? json(*o.identity.label) : json(nullptr);
+    j["match_score"] = o.identity.label ? json(round_to(*o.identity.score, 1e-4)) : json(nullptr);
+    j["centroid_px"] = pt(o.geometry.centroid, 1e-3);
+    j["centroid_cm"] = o.centroid_cm ? pt(*o.centroid_cm, 1e-4) : json(nullptr);
+    j["area_px"] = std::lround(o.geometry.area_px);
+    j["edge_points"] = o.geometry.contour.size();
+    j["orientation_deg"] = round_to(o.pose.orientation_deg, 1e-3);
+    j["axis_line"] = {{"slope", o.pose.slope ? json(round_to(*o.pose.slope, 1e-5)) : json(nullptr)},
+                      {"intercept", o.pose.intercept ? json(round_to(*o.pose.intercept, 1e-3)) : json(nullptr)}};
+    j["elongation"] = round_to(o.pose.elongation, 1e-3);
+    j["elongated"] = o.pose.elongated;
+    j["grip"] = {{"p1_px", pt(o.grip.p1, 1e-3)},
+                 {"p2_px", pt(o.grip.p2, 1e-3)},
+                 {"opening_px", round_to(o.grip.opening_px, 1e-3)},
+                 {"opening_cm", o.grip.opening_cm ? json(round_to(*o.grip.opening_cm, 1e-4)) : json(nullptr)},
+                 {"angle_deg", round_to(o.grip.angle_deg, 1e-3)},
+                 {"feasible", o.grip.feasible}};
+    doc["objects"].push_back(j);
+  }
+  return doc;
+}
+
+std::string Vision::report(const Detection& det) const {
+  std::string out;
+  char line[256];
+  if (det.objects.empty()) return "No objects found.\n";
+  for (const DetectedObject& o : det.objects) {
+    std::snprintf(line, sizeof line, "Data for object #%d\n", o.index);
+    out += line;
+    if (has_library_) {
+      if (o.identity.label) std::snprintf(line, sizeof line, "Identified as %s (match %.2f)\n", o.identity.label->c_str(), *o.identity.score);
+      else std::snprintf(line, sizeof line, "Identified as unknown\n");
+      out += line;
+    }
+    if (o.centroid_cm) std::snprintf(line, sizeof line, "Centre at %.2f cm, %.2f cm\n", o.centroid_cm->x, o.centroid_cm->y);
+    else std::snprintf(line, sizeof line, "Centre at %.2f px, %.2f px\n", o.geometry.centroid.x, o.geometry.centroid.y);
+    out += line;
+    if (o.grip.opening_cm) std::snprintf(line, sizeof line, "Gripper opening = %.2f cm\n", *o.grip.opening_cm);
+    else std::snprintf(line, sizeof line, "Gripper opening = %.2f px\n", o.grip.opening_px);
+    out += line;
+    std::snprintf(line, sizeof line, "Gripper orientation: %.2f degrees w.r.t. robotic arm horizontal reference axis.\n",
+                  o.grip.angle_deg);
+    out += line;
+    if (!o.grip.feasible) {
+      out += !o.grip.clear ? "Not pickable: every grip puts a finger on a neighbouring object.\n"
+                           : "Not pickable: wider than the gripper.\n";
+    }
+  }
+  return out;
+}
+
+}  // namespace rbx1::vision

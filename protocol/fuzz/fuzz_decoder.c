@@ -1,0 +1,148 @@
+/* fuzz_decoder.c - libFuzzer target: the stream decoder under arbitrary bytes and chunkings, and every unpack. */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "rbx1_proto.h"
+
+#define CHECK(cond) \
+  do {              \
+    if (!(cond)) abort(); \
+  } while (0)
+
+/* One decoding pass: checks each event's invariants and folds the events into a hash so that passes with
+ * different chunkings can be compared. */
+typedef struct {
+  const uint8_t *stream;
+  size_t stream_len;
+  uint32_t hash;
+  size_t events;
+} pass;
+
+static void mix(pass *p, uint32_t v) { p->hash = (p->hash ^ v) * 16777619u; }
+
+static int occurs_in(const uint8_t *hay, size_t n, const uint8_t *needle, size_t m) {
+  size_t i;
+  if (m > n) return 0;
+  for (i = 0; i + m <= n; i++)
+    if (memcmp(hay + i, needle, m) == 0) return 1;
+  return 0;
+}
+
+static void on_frame(void *ctx, const rbx1_frame *f) {
+  pass *p = (pass *)ctx;
+  uint8_t wire[RBX1_MAX_FRAME];
+  size_t n, i;
+  CHECK(f->len <= RBX1_MAX_PAYLOAD);
+  n = rbx1_frame_encode(wire, sizeof wire, f->seq, f->type, f->payload, f->len);
+  CHECK(n == (size_t)f->len + RBX1_FRAME_OVERHEAD);
+  CHECK(rbx1_crc16(wire + 1, n - 3) == f->crc); /* CRC valid */
+  CHECK((uint16_t)(wire[n - 2] | (wire[n - 1] << 8)) == f->crc);
+  CHECK(occurs_in(p->stream, p->stream_len, wire, n)); /* re-encodes to bytes that were on the wire */
+  mix(p, 0x100u | f->seq);
+  mix(p, f->type);
+  mix(p, f->len);
+  mix(p, f->crc);
+  for (i = 0; i < f->len; i++) mix(p, f->payload[i]);
+  p->events++;
+}
+
+static void on_reject(void *ctx, uint8_t status, uint8_t seq, uint8_t has_seq) {
+  pass *p = (pass *)ctx;
+  CHECK(status == RBX1_BAD_CRC || status == RBX1_BAD_LENGTH);
+  CHECK(has_seq == 1);
+  mix(p, 0x200u | status);
+  mix(p, seq);
+  p->events++;
+}
+
+/* Feeds the stream in chunks whose sizes cycle through sizes[]; size 0 means "inter-byte timeout" (reset). */
+static void run_pass(pass *p, const uint8_t *sizes, size_t nsizes, int allow_reset) {
+  rbx1_decoder d;
+  size_t pos = 0, k = 0;
+  rbx1_decoder_init(&d, on_frame, on_reject, p);
+  while (pos < p->stream_len) {
+    size_t n = nsizes ? sizes[k++ % nsizes] : p->stream_len;
+    if (n == 0) {
+      if (allow_reset) rbx1_decoder_reset(&d);
+      continue;
+    }
+    if (n > p->stream_len - pos) n = p->stream_len - pos;
+    rbx1_decoder_feed(&d, p->stream + pos, n);
+    pos += n;
+    CHECK(d.n < RBX1_MAX_FRAME);
+    CHECK(rbx1_decoder_pending(&d) == (d.n > 0));
+  }
+}
+
+/* unpack(x) accepts exactly its length, and pack(unpack(x)) == x. */
+#define FUZZ_CODEC(T, LEN)                                                        \
+  do {                                                                            \
+    T m;                                                                          \
+    uint8_t out[RBX1_MAX_PAYLOAD];                                                \
+    uint8_t len = (uint8_t)(size > 255 ? 255 : size);                             \
+    uint8_t st = T##_unpack(&m, data, len);                                       \
+    CHECK(st == (len == (LEN) ? RBX1_OK : RBX1_BAD_LENGTH));                      \
+    if (st == RBX1_OK) {                                                          \
+      CHECK(T##_pack(&m, out) == (LEN));                                          \
+      CHECK(memcmp(out, data, (LEN)) == 0);                                       \
+    }                                                                             \
+  } while (0)
+
+static void fuzz_unpack(const uint8_t *data, size_t size) {
+  FUZZ_CODEC(rbx1_hello_req, RBX1_HELLO_REQ_LEN);
+  FUZZ_CODEC(rbx1_hello_resp, RBX1_HELLO_RESP_LEN);
+  FUZZ_CODEC(rbx1_status_resp, RBX1_STATUS_RESP_LEN);
+  FUZZ_CODEC(rbx1_heartbeat_resp, RBX1_HEARTBEAT_RESP_LEN);
+  FUZZ_CODEC(rbx1_move_req, RBX1_MOVE_REQ_LEN);
+  FUZZ_CODEC(rbx1_move_resp, RBX1_MOVE_RESP_LEN);
+  FUZZ_CODEC(rbx1_gripper_req, RBX1_GRIPPER_REQ_LEN);
+  FUZZ_CODEC(rbx1_gripper_resp, RBX1_GRIPPER_RESP_LEN);
+  FUZZ_CODEC(rbx1_home_req, RBX1_HOME_REQ_LEN);
+  FUZZ_CODEC(rbx1_home_resp, RBX1_HOME_RESP_LEN);
+  FUZZ_CODEC(rbx1_stop_resp, RBX1_STOP_RESP_LEN);
+  FUZZ_CODEC(rbx1_estop_resp, RBX1_ESTOP_RESP_LEN);
+  FUZZ_CODEC(rbx1_clear_fault_resp, RBX1_CLEAR_FAULT_RESP_LEN);
+  FUZZ_CODEC(rbx1_enable_req, RBX1_ENABLE_REQ_LEN);
+  FUZZ_CODEC(rbx1_enable_resp, RBX1_ENABLE_RESP_LEN);
+  FUZZ_CODEC(rbx1_set_position_req, RBX1_SET_POSITION_REQ_LEN);
+  FUZZ_CODEC(rbx1_set_position_resp, RBX1_SET_POSITION_RESP_LEN);
+  FUZZ_CODEC(rbx1_config_get_req, RBX1_CONFIG_GET_REQ_LEN);
+  FUZZ_CODEC(rbx1_config_get_resp, RBX1_CONFIG_GET_RESP_LEN);
+  FUZZ_CODEC(rbx1_config_set_req, RBX1_CONFIG_SET_REQ_LEN);
+  FUZZ_CODEC(rbx1_config_set_resp, RBX1_CONFIG_SET_RESP_LEN);
+  FUZZ_CODEC(rbx1_config_reset_resp, RBX1_CONFIG_RESET_RESP_LEN);
+  FUZZ_CODEC(rbx1_nak, RBX1_NAK_LEN);
+  {
+    int t;
+    for (t = 0; t < 256; t++) {
+      int rl = rbx1_request_len((uint8_t)t), sl = rbx1_response_len((uint8_t)t);
+      CHECK(rl >= -1 && rl <= RBX1_MAX_PAYLOAD && sl >= -1 && sl <= RBX1_MAX_PAYLOAD && (rl < 0) == (sl < 0));
+    }
+  }
+}
+
+/* Input: byte 0 = number of chunk-size bytes that follow (mod 16), then those sizes, then the stream. */
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
+  pass whole = {0}, chunked = {0}, reset = {0};
+  const uint8_t *sizes;
+  size_t nsizes, i, nonzero = 0;
+  if (size == 0) return 0;
+  nsizes = data[0] % 16u;
+  if (nsizes > size - 1) nsizes = size - 1;
+  sizes = data + 1;
+  whole.stream = chunked.stream = reset.stream = data + 1 + nsizes;
+  whole.stream_len = chunked.stream_len = reset.stream_len = size - 1 - nsizes;
+  whole.hash = chunked.hash = reset.hash = 2166136261u;
+  for (i = 0; i < nsizes; i++) nonzero += sizes[i] != 0;
+
+  run_pass(&whole, NULL, 0, 0);
+  CHECK(whole.events <= whole.stream_len); /* every event consumes at least one byte: bounded work */
+  if (nonzero) {
+    run_pass(&chunked, sizes, nsizes, 0); /* zeros skipped: the same bytes, other chunk boundaries */
+    CHECK(chunked.events == whole.events && chunked.hash == whole.hash);
+    run_pass(&reset, sizes, nsizes, 1); /* with inter-byte timeouts: invariants only */
+  }
+  fuzz_unpack(data, size);
+  return 0;
+}

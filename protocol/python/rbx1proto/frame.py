@@ -1,0 +1,82 @@
+"""frame.py - RBX1 framing: CRC-16/CCITT-FALSE, frame encoding and the resynchronising stream decoder (as the C one)."""
+from collections import namedtuple
+
+SYNC = 0xA5
+MAX_PAYLOAD = 58
+OVERHEAD = 6
+MAX_FRAME = MAX_PAYLOAD + OVERHEAD
+BAD_CRC = 1     # = messages.Status.BAD_CRC (kept literal so framing does not depend on the message table)
+BAD_LENGTH = 2  # = messages.Status.BAD_LENGTH
+
+Frame = namedtuple("Frame", "seq type payload crc")
+Reject = namedtuple("Reject", "status seq")  # seq is None when the SEQ byte was not read
+
+
+def crc16(data, crc=0xFFFF):
+    """CRC-16/CCITT-FALSE: poly 0x1021, init 0xFFFF, no reflection, xorout 0. crc16(b'123456789') == 0x29B1."""
+    for b in bytes(data):
+        x = ((crc >> 8) ^ b) & 0xFF
+        x ^= x >> 4
+        crc = ((crc << 8) ^ (x << 12) ^ (x << 5) ^ x) & 0xFFFF
+    return crc
+
+
+def encode(seq, type, payload=b""):
+    """One frame: SYNC LEN SEQ TYPE PAYLOAD CRC(lo, hi). ValueError if the payload exceeds 58 bytes."""
+    payload = bytes(payload)
+    if len(payload) > MAX_PAYLOAD:
+        raise ValueError(f"payload of {len(payload)} bytes exceeds {MAX_PAYLOAD}")
+    if not 0 <= seq <= 255 or not 0 <= type <= 255:
+        raise ValueError("seq and type are bytes")
+    body = bytes([len(payload), seq, type]) + payload
+    crc = crc16(body)
+    return bytes([SYNC]) + body + bytes([crc & 0xFF, crc >> 8])
+
+
+class Decoder:
+    """Streaming decoder. feed() returns the Frames and Rejects completed by the bytes, in stream order.
+    After a rejection it resumes hunting at the byte after the rejected SYNC (see PROTOCOL.md)."""
+
+    def __init__(self):
+        self.buf = bytearray()
+
+    def pending(self):
+        """True while a frame has started but not completed."""
+        return bool(self.buf)
+
+    def reset(self):
+        """Drops a partial frame (inter-byte timeout); True if one was pending."""
+        pending = bool(self.buf)
+        self.buf.clear()
+        return pending
+
+    def _shift(self, start):
+        i = self.buf.find(SYNC, start)
+        del self.buf[:len(self.buf) if i < 0 else i]
+
+    def feed(self, data):
+        out = []
+        for b in bytes(data):
+            if not self.buf and b != SYNC:
+                continue
+            self.buf.append(b)
+            self._settle(out)
+        return out
+
+    def _settle(self, out):
+        buf = self.buf
+        while len(buf) >= 3:
+            length, seq = buf[1], buf[2]
+            if length > MAX_PAYLOAD:
+                self._shift(1)
+                out.append(Reject(BAD_LENGTH, seq))
+                continue
+            if len(buf) < length + OVERHEAD:
+                return
+            rx = buf[4 + length] | (buf[5 + length] << 8)
+            if crc16(buf[1:4 + length]) == rx:
+                out.append(Frame(seq, buf[3], bytes(buf[4:4 + length]), rx))
+                self._shift(length + OVERHEAD)
+            else:
+                self._shift(1)
+                out.append(Reject(BAD_CRC, seq))

@@ -1,0 +1,102 @@
+"""test_frame.py - Python framing (CRC, encode, decoder) against the shared vectors, in any chunking."""
+import random
+
+import pytest
+from conftest import load_vectors
+
+from rbx1proto import frame
+from rbx1proto.messages import Status
+
+STREAMS = load_vectors("streams.json")
+MESSAGES = load_vectors("messages.json")
+
+
+def as_json(events):
+    return [{"frame": {"seq": e.seq, "type": e.type, "payload": e.payload.hex(), "crc": e.crc}}
+            if isinstance(e, frame.Frame) else {"reject": {"status": Status(e.status).name, "seq": e.seq}}
+            for e in events]
+
+
+def feed_chunked(data, chunks):
+    d = frame.Decoder()
+    out, pos, k = [], 0, 0
+    while pos < len(data):
+        n = chunks[k % len(chunks)]
+        out += d.feed(data[pos:pos + n])
+        pos, k = pos + n, k + 1
+    return out, d.pending()
+
+
+def test_crc_check_value():
+    assert frame.crc16(b"123456789") == 0x29B1
+
+
+@pytest.mark.parametrize("v", load_vectors("crc.json"), ids=lambda v: v["data"][:12] or "empty")
+def test_crc_vectors(v):
+    assert frame.crc16(bytes.fromhex(v["data"])) == v["crc"]
+
+
+def test_budget_overhead_and_move_size():
+    assert frame.OVERHEAD == 6
+    assert len(frame.encode(0, 2)) == 6
+    move = next(v for v in MESSAGES if v["name"] == "MOVE request")
+    assert len(bytes.fromhex(move["wire"])) == 32
+
+
+@pytest.mark.parametrize("v", MESSAGES, ids=lambda v: v["name"])
+def test_encode_message_vectors(v):
+    assert frame.encode(v["seq"], v["type"], bytes.fromhex(v["payload"])).hex() == v["wire"]
+
+
+def test_encode_rejects_oversize():
+    assert len(frame.encode(1, 2, bytes(58))) == 64
+    with pytest.raises(ValueError):
+        frame.encode(1, 2, bytes(59))
+
+
+@pytest.mark.parametrize("chunks", [[1 << 20], [1], [2], [3, 1, 7], [5, 64, 1], [63]])
+@pytest.mark.parametrize("v", STREAMS, ids=lambda v: v["name"])
+def test_stream_vectors(v, chunks):
+    events, pending = feed_chunked(bytes.fromhex(v["wire"]), chunks)
+    assert as_json(events) == v["events"]
+    assert pending == v["pending"]
+
+
+def test_reset_drops_partial_frame():
+    trunc = next(v for v in STREAMS if v["name"] == "truncated_swallows_short_frame")
+    d = frame.Decoder()
+    assert d.feed(bytes.fromhex(trunc["wire"])) == []
+    assert d.pending()
+    assert d.reset() is True
+    assert d.reset() is False
+    (f,) = d.feed(frame.encode(4, 2))
+    assert (f.seq, f.type, f.payload) == (4, 2, b"")
+
+
+def test_random_frames_in_noise_all_found():
+    rng = random.Random(99)
+    sent, wire = [], bytearray()
+    for i in range(200):
+        wire += bytes(rng.choice([b for b in range(256) if b != frame.SYNC]) for _ in range(rng.randrange(5)))
+        payload = bytes(rng.randrange(256) for _ in range(rng.randrange(59)))
+        sent.append((i, payload))
+        wire += frame.encode(i, rng.randrange(256), payload)
+    events, pending = feed_chunked(bytes(wire), [1, 9, 2, 33])
+    assert [(e.seq, e.payload) for e in events] == sent
+    assert not pending
+
+
+def test_protocol_md_example_is_the_vector():
+    """The hex example in PROTOCOL.md is exactly what the implementation produces."""
+    import os
+    from conftest import PROTOCOL_DIR
+    with open(os.path.join(PROTOCOL_DIR, "PROTOCOL.md")) as f:
+        doc = f.read()
+    v = next(v for v in STREAMS if v["name"] == "protocol_md_example")
+    wire = bytes.fromhex(v["wire"])
+    move, resp, nak = wire[:32], wire[32:40], wire[40:]
+    for part in (move, resp, nak):
+        assert part.hex(" ") in doc
+    assert "CRC 0x%04x (sent %02x %02x)" % (frame.crc16(move[1:-2]), move[-2], move[-1]) in doc
+    assert "CRC 0x%04x (sent %02x %02x)" % (frame.crc16(resp[1:-2]), resp[-2], resp[-1]) in doc
+    assert [type(e) for e in frame.Decoder().feed(wire)] == [frame.Frame] * 3

@@ -1,0 +1,227 @@
+"""test_link.py - Link (pyserial) against a firmware-like peer on a pty: retransmission, NAK, duplicates, LinkError."""
+import os
+import select
+import threading
+import time
+import tty
+
+import pytest
+
+pytest.importorskip("serial", reason="pyserial is not installed")
+
+from rbx1proto import frame, messages  # noqa: E402
+from rbx1proto.link import Link, LinkError  # noqa: E402
+from rbx1proto.messages import MsgType, Status  # noqa: E402
+
+TIMEOUT = 0.05
+
+
+class Peer(threading.Thread):
+    """A firmware stand-in written with the Python protocol: at-most-once execution with a cached response, and
+    knobs to drop requests, NAK them, lose or delay responses, or add line noise."""
+
+    def __init__(self, master):
+        super().__init__(daemon=True)
+        self.master = master
+        self.decoder = frame.Decoder()
+        self.stop = threading.Event()
+        self.lock = threading.Lock()
+        self.received = []      # wire bytes of every valid frame received
+        self.executed = []      # types executed (duplicates excluded)
+        self.duplicates = 0
+        self.last = None        # (seq, crc) of the last executed request
+        self.cached = None      # its response frame
+        self.drop = 0           # ignore the next N requests entirely
+        self.nak = 0            # answer the next N requests with a NAK instead
+        self.lose = 0           # execute the next N requests but lose their responses
+        self.delay = 0.0        # seconds before each response
+        self.noise = b""        # bytes sent before each response
+        self.nak_other_seq = False
+        self.silent = False
+
+    def run(self):
+        while not self.stop.is_set():
+            r, _, _ = select.select([self.master], [], [], 0.01)
+            if not r:
+                continue
+            try:
+                data = os.read(self.master, 512)
+            except OSError:
+                return
+            with self.lock:
+                for ev in self.decoder.feed(data):
+                    if isinstance(ev, frame.Frame):
+                        self.handle(ev)
+
+    def send(self, data):
+        os.write(self.master, data)
+
+    def handle(self, f):
+        self.received.append(frame.encode(f.seq, f.type, f.payload))
+        if self.silent:
+            return
+        if self.drop:
+            self.drop -= 1
+            return
+        if self.nak:
+            self.nak -= 1
+            self.send(frame.encode(f.seq, MsgType.NAK, messages.pack_nak(Status.BAD_CRC)))
+            return
+        if f.type != MsgType.ESTOP and self.last == (f.seq, f.crc):
+            self.duplicates += 1  # a retransmission: answer again, do not execute again
+            response = self.cached
+        else:
+            response = frame.encode(f.seq, f.type | 0x80, self.execute(f))
+            if f.type != MsgType.ESTOP:
+                self.last, self.cached = (f.seq, f.crc), response
+        if self.lose:
+            self.lose -= 1
+            return
+        if self.delay:
+            time.sleep(self.delay)
+        if self.nak_other_seq:
+            self.send(frame.encode((f.seq + 100) & 0xFF, MsgType.NAK, messages.pack_nak(Status.BAD_CRC)))
+        self.send(self.noise + response)
+
+    def execute(self, f):
+        t = MsgType(f.type)
+        self.executed.append(t)
+        fields = {name: ([0] * count if count else 0) for name, _, count in messages.RESPONSE_FIELDS[t]}
+        if t == MsgType.HELLO:
+            fields.update(proto_version=messages.PROTO_VERSION, joints=6, queue_size=16,
+                          last_seq=self.last[0] if self.last else 255)
+        if t == MsgType.STATUS:
+            fields.update(moves_done=self.executed.count(MsgType.MOVE), gripper_us=1000 + f.seq)  # tells SEQs apart
+        if t == MsgType.MOVE:
+            fields.update(queue_free=15)
+        return messages.pack_response(t, **fields)
+
+
+@pytest.fixture
+def pty_pair():
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    peer = Peer(master)
+    peer.start()
+    link = Link(os.ttyname(slave), timeout=TIMEOUT, retries=5)
+    yield link, peer
+    link.close()
+    peer.stop.set()
+    peer.join(1)
+    os.close(slave)
+    os.close(master)
+
+
+MOVE = dict(target=[100, -200, 300, 0, 5, -6], duration_ms=250)
+
+
+def test_request_response(pty_pair):
+    link, peer = pty_pair
+    r = link.request(MsgType.MOVE, **MOVE)
+    assert r == {"status": 0, "queue_free": 15}
+    s = link.request(MsgType.STATUS)
+    assert s["moves_done"] == 1 and s["position"] == [0] * 6
+    assert link.seq == 2 and link.retransmissions == 0
+    assert [frame.Decoder().feed(w)[0].seq for w in peer.received] == [0, 1]
+
+
+def test_retransmits_same_bytes_on_timeout(pty_pair):
+    link, peer = pty_pair
+    peer.drop = 2
+    t0 = time.monotonic()
+    assert link.request(MsgType.MOVE, **MOVE)["status"] == Status.OK
+    assert time.monotonic() - t0 >= 2 * TIMEOUT
+    assert link.retransmissions == 2
+    assert len(peer.received) == 3 and len(set(peer.received)) == 1  # byte-identical retransmissions
+    assert peer.executed == [MsgType.MOVE]
+
+
+def test_retransmits_at_once_on_nak(pty_pair):
+    link, peer = pty_pair
+    peer.nak = 1
+    link.timeout = 1.0
+    t0 = time.monotonic()
+    assert link.request(MsgType.HEARTBEAT) == {"status": 0}
+    assert time.monotonic() - t0 < 0.5  # no waiting for the timeout
+    assert link.retransmissions == 1
+    assert len(peer.received) == 2 and peer.received[0] == peer.received[1]
+
+
+def test_nak_of_another_seq_and_noise_are_ignored(pty_pair):
+    link, peer = pty_pair
+    peer.nak_other_seq = True
+    peer.noise = b"\x00\xa5\x3b\x07\x13" + b"\xa5\x00\x01\x02\xde\xad"  # a bad-length and a bad-CRC candidate
+    assert link.request(MsgType.STATUS)["status"] == Status.OK
+    assert link.retransmissions == 0
+    assert link.rejects >= 2
+
+
+def test_lost_response_duplicate_is_answered_not_reexecuted(pty_pair):
+    link, peer = pty_pair
+    peer.lose = 1
+    assert link.request(MsgType.MOVE, **MOVE) == {"status": 0, "queue_free": 15}
+    assert link.retransmissions == 1
+    assert peer.executed == [MsgType.MOVE] and peer.duplicates == 1
+    assert link.request(MsgType.STATUS)["moves_done"] == 1
+
+
+def test_late_response_then_stale_duplicate_is_ignored(pty_pair):
+    link, peer = pty_pair
+    link.timeout = 0.1
+    peer.delay = 0.15  # the first answer comes after the timeout: the request is retransmitted
+    assert link.request(MsgType.STATUS)["gripper_us"] == 1000
+    peer.delay = 0
+    # The second (cached) response to SEQ 0 is still coming; the next STATUS (SEQ 1) must not take it for its own.
+    assert link.request(MsgType.STATUS)["gripper_us"] == 1001
+    assert link.retransmissions >= 1  # the delayed peer may make the second request wait too
+    assert peer.executed == [MsgType.STATUS, MsgType.STATUS] and peer.duplicates >= 1
+
+
+def test_link_error_after_retries(pty_pair):
+    link, peer = pty_pair
+    peer.silent = True
+    t0 = time.monotonic()
+    with pytest.raises(LinkError):
+        link.request(MsgType.HEARTBEAT)
+    elapsed = time.monotonic() - t0
+    assert link.retransmissions == 5
+    time.sleep(0.05)
+    assert len(peer.received) == 6 and len(set(peer.received)) == 1
+    assert 6 * TIMEOUT * 0.9 <= elapsed < 6 * TIMEOUT + 0.5
+    assert link.seq == 1  # the SEQ is consumed: the next request is a new one
+
+
+def test_hello_continues_from_last_seq(pty_pair):
+    link, peer = pty_pair
+    peer.last = (41, 0x1234)  # the firmware's record from an earlier session
+    link.seq = 200
+    r = link.hello()
+    assert r["last_seq"] == 41 and r["proto_version"] == messages.PROTO_VERSION
+    assert link.seq == 42
+    link.request(MsgType.STATUS)
+    assert frame.Decoder().feed(peer.received[-1])[0].seq == 42
+
+
+def test_seq_wraps(pty_pair):
+    link, peer = pty_pair
+    link.seq = 255
+    link.request(MsgType.HEARTBEAT)
+    link.request(MsgType.HEARTBEAT)
+    assert [frame.Decoder().feed(w)[0].seq for w in peer.received] == [255, 0]
+    assert peer.duplicates == 0 and peer.executed == [MsgType.HEARTBEAT] * 2
+
+
+def test_send_raw_garbage_then_request(pty_pair):
+    link, peer = pty_pair
+    link.send_raw(b"\xa5\x05\x00\x01\x02")  # an unfinished frame at the peer...
+    time.sleep(0.02)
+    with peer.lock:
+        assert peer.decoder.reset()  # ...which the firmware drops after its inter-byte timeout
+    assert link.request(MsgType.STATUS)["status"] == Status.OK
+
+
+def test_config_reset_waits_longer(pty_pair):
+    link, peer = pty_pair
+    peer.delay = 0.3  # EEPROM writes: slower than the 50 ms timeout, within the 1 s of CONFIG_*
+    assert link.request(MsgType.CONFIG_RESET) == {"status": 0}
+    assert link.retransmissions == 0

@@ -1,0 +1,198 @@
+#!/usr/bin/python3
+"""make_vectors.py - writes the shared test vectors (messages.json, streams.json, crc.json) in this folder.
+
+Each stream's expected events are written down by construction here (not read back from a decoder); the script
+then checks that the Python decoder agrees before writing, and both the C and the Python tests check every vector.
+Run after a change to messages.json: /usr/bin/python3 protocol/vectors/make_vectors.py
+"""
+import json
+import os
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "python"))
+from rbx1proto import frame  # noqa: E402
+from rbx1proto.messages import MsgType, Status, State, Fault, Input, Cap, Key, PROTO_VERSION, GLOBAL_JOINT  # noqa: E402
+from rbx1proto import messages  # noqa: E402
+
+I32_MIN, I32_MAX = -2**31, 2**31 - 1
+
+# Sample fields per type: (request fields, response fields). Values exercise signs, extremes and 0xA5 bytes.
+SAMPLES = {
+    MsgType.HELLO: ({"proto_version": PROTO_VERSION},
+                    {"status": Status.OK, "proto_version": PROTO_VERSION, "fw_major": 1, "fw_minor": 2, "fw_patch": 3,
+                     "joints": 6, "queue_size": 16,
+                     "capabilities": int(Cap.GRIPPER | Cap.EEPROM_CONFIG | Cap.ESTOP_INPUT | Cap.SIMULATED),
+                     "last_seq": 0xA5}),
+    MsgType.STATUS: ({},
+                     {"status": Status.OK, "state": State.MOVING, "faults": int(Fault.EEPROM_DEFAULTS),
+                      "homed": 0x3F, "inputs": int(Input.LIMIT_J2 | Input.ESTOP), "enabled": 1, "queue_free": 15,
+                      "moves_done": 0xA5A5, "gripper_us": 1500,
+                      "position": [0, -1, 123456, -123456, I32_MAX, I32_MIN]}),
+    MsgType.HEARTBEAT: ({}, {"status": Status.OK}),
+    MsgType.MOVE: ({"target": [1000, -2000, 0, 0xA5A5A5, -0xA5, 42], "duration_ms": 1500},
+                   {"status": Status.OK, "queue_free": 14}),
+    MsgType.GRIPPER: ({"pulse_us": 2000, "dwell_ms": 300}, {"status": Status.OK, "queue_free": 13}),
+    MsgType.HOME: ({"joint_mask": 0}, {"status": Status.OK}),
+    MsgType.STOP: ({}, {"status": Status.OK}),
+    MsgType.ESTOP: ({}, {"status": Status.OK}),
+    MsgType.CLEAR_FAULT: ({}, {"status": Status.ESTOP_ACTIVE}),
+    MsgType.ENABLE: ({"enable": 1}, {"status": Status.FAULT_ACTIVE}),
+    MsgType.SET_POSITION: ({"position": [I32_MIN, I32_MAX, -1, 1, 0, -0x5A5A5A5A]}, {"status": Status.OK}),
+    MsgType.CONFIG_GET: ({"joint": GLOBAL_JOINT, "key": Key.HEARTBEAT_MS}, {"status": Status.OK, "value": 1000}),
+    MsgType.CONFIG_SET: ({"joint": 2, "key": Key.SOFT_MIN, "value": -100000}, {"status": Status.SOFT_LIMIT}),
+    MsgType.CONFIG_RESET: ({}, {"status": Status.EEPROM_ERROR}),
+}
+
+
+def jsonable(fields):
+    return {k: (list(map(int, v)) if isinstance(v, list) else int(v)) for k, v in fields.items()}
+
+
+def message_vectors():
+    out = []
+    seq = 0
+    for t in MsgType:
+        if t == MsgType.NAK:
+            continue
+        req, resp = SAMPLES[t]
+        for kind, fields, ftype, pack in (("request", req, int(t), messages.pack_request),
+                                          ("response", resp, int(t) | 0x80, messages.pack_response)):
+            payload = pack(t, **fields)
+            wire = frame.encode(seq, ftype, payload)
+            out.append({"name": f"{t.name} {kind}", "kind": kind, "msg": int(t), "type": ftype, "seq": seq,
+                        "fields": jsonable(fields), "payload": payload.hex(), "wire": wire.hex(),
+                        "crc": frame.crc16(wire[1:-2])})
+        seq = (seq + 37) & 0xFF  # vary SEQ, and pass through 0xA5-ish values
+    for seq, reason in ((5, Status.BAD_CRC), (0xA5, Status.BAD_LENGTH), (255, Status.UNKNOWN_TYPE)):
+        payload = messages.pack_nak(reason)
+        wire = frame.encode(seq, MsgType.NAK, payload)
+        out.append({"name": f"NAK {reason.name}", "kind": "nak", "msg": int(MsgType.NAK), "type": int(MsgType.NAK),
+                    "seq": seq, "fields": {"reason": int(reason)}, "payload": payload.hex(), "wire": wire.hex(),
+                    "crc": frame.crc16(wire[1:-2])})
+    return out
+
+
+def ev_frame(b):
+    """Expected frame event for an encoded frame b."""
+    n = b[1]
+    return {"frame": {"seq": b[2], "type": b[3], "payload": b[4:4 + n].hex(), "crc": b[4 + n] | (b[5 + n] << 8)}}
+
+
+def ev_reject(status, seq):
+    return {"reject": {"status": status.name, "seq": seq}}
+
+
+def stream_vectors():
+    move = frame.encode(7, MsgType.MOVE, messages.pack_request(MsgType.MOVE, target=[1, 2, 3, 4, 5, 6], duration_ms=0))
+    status = frame.encode(8, MsgType.STATUS)
+    hello_resp = frame.encode(9, MsgType.HELLO | 0x80, messages.pack_response(MsgType.HELLO, **SAMPLES[MsgType.HELLO][1]))
+    nak = frame.encode(3, MsgType.NAK, messages.pack_nak(Status.BAD_CRC))
+    sync_seq = frame.encode(0xA5, MsgType.SET_POSITION, messages.pack_request(
+        MsgType.SET_POSITION, position=[-0x5A5A5A5B, 0xA5, 0xA5A5, 0xA5A5A5, 0, 0]))
+    assert sync_seq.count(0xA5) >= 8
+    # A frame whose CRC itself contains 0xA5 (search SEQ for it).
+    crc_a5 = next(f for f in (frame.encode(s, t) for t in MsgType for s in range(256)) if 0xA5 in f[-2:])
+    maxf = frame.encode(1, 0x55, bytes(range(58)))  # longest payload; unknown TYPE is the firmware's business
+    empty_unknown = frame.encode(2, 0x00, b"")
+
+    def corrupt(b, i, x=0x01):
+        c = bytearray(b)
+        c[i] ^= x
+        return bytes(c)
+
+    bad_crc = corrupt(move, len(move) - 1)            # last CRC byte flipped
+    bad_payload = corrupt(move, 10, 0x80)              # a payload bit flipped
+    assert 0xA5 not in move[1:]
+    inner = status
+    # Outer frame with a bad CRC whose payload carries a whole valid frame.
+    outer_ok = frame.encode(0x21, MsgType.GRIPPER, b"\x00" * 3 + inner + b"\x11" * 3)
+    outer_bad = corrupt(outer_ok, len(outer_ok) - 2)
+    # STATUS request whose LEN was hit: LEN 10 instead of 0, so the candidate swallows 10 bytes of the next frame.
+    status_len_hit = bytes([0xA5, 10]) + status[2:]
+
+    S = []
+
+    def add(name, description, wire, events, pending=False):
+        S.append({"name": name, "description": description, "wire": wire.hex(), "events": events, "pending": pending})
+
+    add("single_move", "one MOVE request (32 bytes on the wire)", move, [ev_frame(move)])
+    add("empty_payload", "STATUS request: LEN 0, 6 bytes", status, [ev_frame(status)])
+    add("max_payload", "58-byte payload, 64-byte frame", maxf, [ev_frame(maxf)])
+    add("unknown_type", "a CRC-valid frame of an unknown TYPE is delivered (the firmware NAKs UNKNOWN_TYPE)",
+        empty_unknown, [ev_frame(empty_unknown)])
+    add("back_to_back", "STATUS, MOVE, HELLO response, NAK with no gap", status + move + hello_resp + nak,
+        [ev_frame(status), ev_frame(move), ev_frame(hello_resp), ev_frame(nak)])
+    add("sync_in_payload_and_seq", "SEQ 0xA5 and 0xA5 bytes in the payload", sync_seq, [ev_frame(sync_seq)])
+    add("sync_in_crc", "a CRC byte equal to SYNC", crc_a5, [ev_frame(crc_a5)])
+    add("garbage_prefix", "garbage without SYNC before a frame", bytes([0x00, 0xFF, 0x13, 0x37, 0x5A, 0x80]) + move,
+        [ev_frame(move)])
+    add("garbage_with_sync_bad_length", "garbage A5 3B 07: LEN 59 rejected (BAD_LENGTH, SEQ 7), then a frame",
+        bytes([0x01, 0xA5, 0x3B, 0x07]) + move, [ev_reject(Status.BAD_LENGTH, 7), ev_frame(move)])
+    add("lone_sync_before_frame", "a stray SYNC: A5 A5 1A reads LEN 0xA5, rejected with SEQ 0x1A, frame found "
+        "by resuming at the byte after the stray SYNC", bytes([0xA5]) + move,
+        [ev_reject(Status.BAD_LENGTH, move[1]), ev_frame(move)])
+    add("bad_length_64", "LEN 64 rejected, the valid frame after it found", bytes([0xA5, 64, 0x33]) + status,
+        [ev_reject(Status.BAD_LENGTH, 0x33), ev_frame(status)])
+    add("bad_length_255", "LEN 255 rejected", bytes([0xA5, 0xFF, 0x00]),
+        [ev_reject(Status.BAD_LENGTH, 0)])
+    add("bad_length_no_seq", "LEN 200 then nothing: undecided until the SEQ byte arrives", bytes([0xA5, 200]), [],
+        pending=True)
+    add("bad_crc", "MOVE with its CRC corrupted", bad_crc, [ev_reject(Status.BAD_CRC, 7)])
+    add("bad_crc_then_valid", "corrupt MOVE (payload bit) then a valid STATUS", bad_payload + status,
+        [ev_reject(Status.BAD_CRC, 7), ev_frame(status)])
+    add("valid_hidden_in_corrupt", "a corrupt frame whose payload holds a whole valid frame: rejected, then the "
+        "inner frame found by the rescan", outer_bad, [ev_reject(Status.BAD_CRC, 0x21), ev_frame(inner)])
+    add("corrupt_len_swallows_next", "STATUS with LEN hit (10): its candidate ends inside the next MOVE; rejected, "
+        "the MOVE found by the rescan", status_len_hit + move, [ev_reject(Status.BAD_CRC, 8), ev_frame(move)])
+    add("truncated", "a MOVE cut 2 bytes short: nothing yet, frame pending", move[:-2], [], pending=True)
+    add("truncated_header", "SYNC and LEN only", move[:2], [], pending=True)
+    add("truncated_swallows_short_frame", "a MOVE cut after 10 bytes, then a STATUS: the STATUS bytes are taken as "
+        "the MOVE's continuation (the 50 ms inter-byte timeout resolves this)", move[:10] + status, [], pending=True)
+    add("sync_noise", "four stray SYNCs then a frame", bytes([0xA5] * 4) + status,
+        [ev_reject(Status.BAD_LENGTH, 0xA5), ev_reject(Status.BAD_LENGTH, 0xA5), ev_reject(Status.BAD_LENGTH, 0xA5),
+         ev_reject(Status.BAD_LENGTH, status[1]), ev_frame(status)])
+    add("garbage_only", "bytes without SYNC: no event, nothing pending", bytes(range(0, 0xA5)), [])
+    doc_move = frame.encode(7, MsgType.MOVE, messages.pack_request(
+        MsgType.MOVE, target=[1000, -2000, 3000, -4000, 5000, 0], duration_ms=1500))
+    doc_resp = frame.encode(7, MsgType.MOVE | 0x80, messages.pack_response(MsgType.MOVE, status=0, queue_free=14))
+    doc_nak = frame.encode(7, MsgType.NAK, messages.pack_nak(Status.BAD_CRC))
+    add("protocol_md_example", "the example in PROTOCOL.md: a MOVE, its response and a NAK",
+        doc_move + doc_resp + doc_nak, [ev_frame(doc_move), ev_frame(doc_resp), ev_frame(doc_nak)])
+    add("frames_around_garbage", "frame, garbage, frame", status + b"\x00\x01\x02" + nak, [ev_frame(status),
+        ev_frame(nak)])
+
+    d = frame.Decoder()
+    for s in S:
+        d.reset()
+        got = d.feed(bytes.fromhex(s["wire"]))
+        got = [{"frame": {"seq": e.seq, "type": e.type, "payload": e.payload.hex(), "crc": e.crc}}
+               if isinstance(e, frame.Frame) else {"reject": {"status": Status(e.status).name, "seq": e.seq}}
+               for e in got]
+        if got != s["events"] or d.pending() != s["pending"]:
+            raise SystemExit(f"make_vectors: {s['name']}: constructed {s['events']} but the decoder gives {got}")
+    return S
+
+
+def crc_vectors():
+    return [{"data": b"123456789".hex(), "crc": 0x29B1}, {"data": "", "crc": 0xFFFF},
+            {"data": "00", "crc": frame.crc16(b"\x00")}, {"data": "a5" * 10, "crc": frame.crc16(b"\xa5" * 10)}]
+
+
+def main():
+    assert frame.crc16(b"123456789") == 0x29B1
+    docs = {
+        "messages.json": {"description": "every message type's request and response (and NAKs): fields, payload and "
+                          "wire bytes in hex; crc is the frame's CRC", "vectors": message_vectors()},
+        "streams.json": {"description": "byte streams and the decoder events they produce, in order, for any "
+                         "chunking; pending: a partial frame remains at the end", "vectors": stream_vectors()},
+        "crc.json": {"description": "CRC-16/CCITT-FALSE of data (hex)", "vectors": crc_vectors()},
+    }
+    for name, doc in docs.items():
+        with open(os.path.join(HERE, name), "w") as f:
+            json.dump(doc, f, indent=1)
+            f.write("\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,98 @@
+"""test_config_cli.py - rbx1d --check-config, config errors naming keys, malformed control requests, CLI exit codes."""
+import json
+import os
+import socket
+import subprocess
+
+import rbx1e2e as e2e
+from conftest import fast_config
+
+
+def run(*args, **kw):
+    return subprocess.run([str(a) for a in args], capture_output=True, text=True, timeout=60, **kw)
+
+
+def test_bundled_config_checks_ok():
+    r = run(e2e.need(e2e.BIN / "rbx1d"), "--config", e2e.DATA / "rbx1.toml", "--check-config")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "OK"
+
+
+def test_config_errors_name_each_key(tmp_path):
+    cfg = fast_config()
+    cfg["camra"] = {"device": "x"}                      # misspelt table
+    cfg["daemon"]["home_on_start"] = "jump"
+    cfg["daemon"]["colour"] = "red"
+    cfg["link"]["baud"] = 9600
+    cfg["arm"]["joints"]["j3"]["min_deg"] = 500.0
+    path = e2e.write_config(tmp_path, cfg)
+    r = run(e2e.BIN / "rbx1d", "--config", path, "--check-config")
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    for key in ("camra", "daemon.home_on_start", "daemon.colour", "link.baud", "arm.joints.j3.min_deg"):
+        assert any(f": {key}" in l or f" {key}:" in l for l in lines), (key, r.stderr)
+    assert len(lines) == 5, r.stderr
+
+
+def test_unreadable_config_exits_2(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[daemon\nsocket = 1\n")
+    r = run(e2e.BIN / "rbx1d", "--config", bad, "--check-config")
+    assert r.returncode == 2 and "bad.toml" in r.stderr
+    r = run(e2e.BIN / "rbx1d", "--config", tmp_path / "missing.toml", "--check-config")
+    assert r.returncode == 2 and "missing.toml" in r.stderr
+
+
+def raw(sock_path, data):
+    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    s.settimeout(10)
+    s.connect(sock_path)
+    s.sendall(data)
+    buf = b""
+    while b"\n" not in buf:
+        chunk = s.recv(4096)
+        if not chunk:
+            break
+        buf += chunk
+    s.close()
+    return json.loads(buf.split(b"\n")[0])
+
+
+def test_malformed_requests_get_errors_and_the_daemon_lives(sim, daemon_factory):
+    d = daemon_factory(sim.port)
+    assert oct(os.stat(d.socket).st_mode & 0o777) == "0o660"
+    cases = [
+        (b"{nope\n", "bad_json"),
+        (b"[1]\n", "bad_request"),
+        (b'{"cmd":"teleport"}\n', "unknown_command"),
+        (b'{"cmd":"pick","name":"x"}\n', "missing_field"),
+        (b'{"cmd":"pick","name":5,"place":"tray"}\n', "bad_field"),
+        (b"x" * 70000 + b"\n", "line_too_long"),
+        (b"\xff\xfe\x00\n", "bad_json"),
+    ]
+    for data, code in cases:
+        assert raw(d.socket, data)["error"]["code"] == code, data[:40]
+    _, final = d.request({"cmd": "status"})
+    assert final["result"]["ready"] is True
+    assert d.proc.poll() is None
+
+
+def test_cli_exit_codes_and_output(sim, daemon_factory, tmp_path):
+    d = daemon_factory(sim.port)
+    rbx1 = e2e.need(e2e.BIN / "rbx1")
+    r = run(rbx1, "status", "--socket", d.socket, "--json")
+    assert r.returncode == 0, r.stderr
+    final = json.loads(r.stdout.strip().splitlines()[-1])
+    assert final["result"]["link"]["connected"] is True
+    r = run(rbx1, "status", "--socket", tmp_path / "nobody.sock")
+    assert r.returncode == 2 and "nobody.sock" in r.stderr
+    r = run(rbx1, "pick", "bolt", "--place", "moon", "--socket", d.socket)
+    assert r.returncode == 1 and "unknown_place" in r.stderr
+    r = run(rbx1, "pick", "bolt", "--socket", d.socket)
+    assert r.returncode == 2  # --place is required: usage error
+    r = run(rbx1, "home", "--socket", d.socket)
+    assert r.returncode == 0, r.stderr
+    assert "job_started" in r.stdout and "position" in r.stdout
+    r = run(rbx1, "shutdown", "--socket", d.socket)
+    assert r.returncode == 0
+    assert d.proc.wait(timeout=10) == 0

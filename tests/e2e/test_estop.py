@@ -1,0 +1,80 @@
+"""test_estop.py - an e-stop mid-move (the control request, and the simulated e-stop input) stops the motion at
+once, aborts the job with an estop event and error, and latches until clear_fault."""
+import threading
+import time
+
+import rbx1e2e as e2e
+
+
+def start_pick(d, name, trigger_step, on_trigger):
+    """Runs a pick in a thread; calls on_trigger once the named step is executing."""
+    out = {}
+    fired = threading.Event()
+
+    def on_event(ev):
+        if ev["event"] == "step" and ev["name"] == trigger_step and not fired.is_set():
+            fired.set()
+            threading.Thread(target=on_trigger, daemon=True).start()
+
+    def run():
+        out["events"], out["final"] = d.request({"cmd": "pick", "name": name, "place": "tray"}, on_event=on_event)
+
+    t = threading.Thread(target=run)
+    t.start()
+    return t, out, fired
+
+
+def assert_stopped(d, sim, fault):
+    _, st1 = d.request({"cmd": "status"})
+    time.sleep(0.4)
+    _, st2 = d.request({"cmd": "status"})
+    fw1, fw2 = st1["result"]["firmware"], st2["result"]["firmware"]
+    assert fw2["state"] == "FAULT", fw2
+    assert fault in fw2["faults"], fw2
+    assert fw1["position"] == fw2["position"], "the arm still moves after the e-stop"
+    return fw2
+
+
+def test_estop_request_mid_move(sim, daemon_factory):
+    d = daemon_factory(sim.port)
+    name = e2e.scene_labels()[0]
+    replies = {}
+    t, out, fired = start_pick(d, name, "carry", lambda: replies.update(estop=d.request({"cmd": "estop"})[1]))
+    t.join(timeout=120)
+    assert fired.is_set(), "the pick never reached the carry step"
+    assert out["final"]["error"]["code"] == "estop", out["final"]
+    assert e2e.events_named(out["events"], "estop"), [e["event"] for e in out["events"]]
+    assert replies["estop"]["result"]["estop"] is True
+    fw = assert_stopped(d, sim, "ESTOP_COMMAND")
+    # The carry move never completed: the log ends before it, and the arm stands short of its target.
+    planned = e2e.planned_waypoints(out["events"])
+    carry = next(w for w in planned if w["name"] == "carry")
+    log = sim.moves()
+    assert all(not (e["kind"] == "move" and e["target"] == carry["target"]) for e in log), "carry completed"
+    assert fw["position"] != carry["target"]
+    # Refused while latched, usable again after clear_fault.
+    _, final = d.request({"cmd": "home"})
+    assert final["error"]["code"] in ("fault", "estop"), final
+    _, final = d.request({"cmd": "clear_fault"})
+    assert "result" in final, final
+    _, final = d.request({"cmd": "home"})
+    assert final["result"]["position"] == [0, 0, 0, 0, 0, 0] or "position" in final["result"]
+
+
+def test_estop_input_mid_move(sim, daemon_factory):
+    d = daemon_factory(sim.port)
+    name = e2e.scene_labels()[0]
+    t, out, fired = start_pick(d, name, "lift", lambda: sim.control("estop 1"))
+    t.join(timeout=120)
+    assert fired.is_set()
+    assert out["final"]["error"]["code"] == "estop", out["final"]
+    assert e2e.events_named(out["events"], "estop")
+    assert_stopped(d, sim, "ESTOP_INPUT")
+    _, final = d.request({"cmd": "clear_fault"})
+    assert final["error"]["code"] == "estop_active", final  # the input is still held
+    sim.control("estop 0")
+    time.sleep(0.1)
+    _, final = d.request({"cmd": "clear_fault"})
+    assert "result" in final, final
+    _, final = d.request({"cmd": "home"})
+    assert "result" in final, final

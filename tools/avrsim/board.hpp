@@ -1,0 +1,46 @@
+// board.hpp - the simulated Arduino Mega 2560: firmware ELF on an atmega2560 at 16 MHz, UART0 on a pty,
+// EEPROM optionally kept in a file, limit switch and e-stop inputs driven from outside.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+
+extern "C" {
+#include "avr_uart.h"
+#include "sim_avr.h"
+#include "uart_pty.h"
+}
+
+namespace rbx1::avrsim {
+
+class Board {
+ public:
+  // Loads the ELF and bridges UART0. Returns false with error set.
+  bool open(const std::string& elf, const std::string& eeprom_file, std::string& error);
+  avr_t* avr() const { return avr_; }
+  const char* pty_path() const { return pty_.port[0].slavename; }
+  // Drives an input pin to its asserted or released level.
+  void set_estop(bool asserted);
+  void set_limit(int joint, bool triggered);  // joint 0..5
+  // Power cycle: EEPROM kept (and saved), everything else back to reset state, inputs re-driven.
+  void reset();
+  // simavr 1.6 times a UART byte as 11 bits (it always counts a parity bit); 8N1 is 10. Sets UART0's byte time
+  // from the firmware's UBRR0/U2X0, or from forced_baud when non-zero (a line rate other than the firmware's).
+  void set_uart_timing(uint32_t forced_baud);
+  // Writes the EEPROM to the --eeprom file (atomic rename). No-op without one.
+  bool save_eeprom(std::string& error);
+
+ private:
+  void drive_inputs(bool force);
+
+  avr_t* avr_ = nullptr;
+  ::avr_uart_t* uart0_ = nullptr;
+  uart_pty_t pty_{};
+  int slave_fd_ = -1;  // held open so the pty never reports EIO to simavr's reader thread
+  std::string eeprom_file_;
+  bool estop_ = false;
+  std::array<bool, 6> limits_{};
+};
+
+}  // namespace rbx1::avrsim

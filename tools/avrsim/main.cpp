@@ -1,0 +1,204 @@
+// main.cpp - rbx1-avrsim: runs the real firmware ELF under simavr behind a pty, paced to real time, driven by a
+// control FIFO, and writes step counts, step-ISR cycles and e-stop latency as JSON on exit.
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "board.hpp"
+#include "probes.hpp"
+
+namespace {
+
+using rbx1::avrsim::Board;
+using rbx1::avrsim::Probes;
+
+volatile std::sig_atomic_t g_stop = 0;
+void on_signal(int) { g_stop = 1; }
+
+// The firmware's default ELF sits beside our binary's folder: build/bin/../firmware/rbx1.elf.
+std::string default_elf() {
+  char buf[4096];
+  ssize_t n = readlink("/proc/self/exe", buf, sizeof buf - 1);
+  if (n <= 0) return "build/firmware/rbx1.elf";
+  std::string self(buf, static_cast<size_t>(n));
+  std::string bin_dir = self.substr(0, self.rfind('/'));
+  return bin_dir + "/../firmware/rbx1.elf";
+}
+
+double now_s() {
+  timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<double>(ts.tv_sec) + ts.tv_nsec * 1e-9;
+}
+
+// Newline-terminated commands from the control FIFO, read without blocking the simulation.
+class ControlFifo {
+ public:
+  bool open(const std::string& path, std::string& error) {
+    struct stat st;
+    if (stat(path.c_str(), &st) != 0 && mkfifo(path.c_str(), 0600) != 0) {
+      error = path + ": cannot create FIFO: " + std::strerror(errno);
+      return false;
+    }
+    fd_ = ::open(path.c_str(), O_RDONLY | O_NONBLOCK);
+    if (fd_ < 0) {
+      error = path + ": " + std::strerror(errno);
+      return false;
+    }
+    // Our own writer keeps the FIFO from reporting EOF between clients.
+    keep_ = ::open(path.c_str(), O_WRONLY | O_NONBLOCK);
+    return true;
+  }
+  bool next(std::string& line) {
+    if (fd_ < 0) return false;
+    char buf[256];
+    ssize_t n;
+    while ((n = read(fd_, buf, sizeof buf)) > 0) pending_.append(buf, static_cast<size_t>(n));
+    size_t nl = pending_.find('\n');
+    if (nl == std::string::npos) return false;
+    line = pending_.substr(0, nl);
+    pending_.erase(0, nl + 1);
+    return true;
+  }
+
+ private:
+  int fd_ = -1, keep_ = -1;
+  std::string pending_;
+};
+
+void write_json(const Probes& probes, const std::string& path) {
+  std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::trunc);
+    out << probes.to_json().dump() << "\n";
+    if (!out) {
+      std::fprintf(stderr, "rbx1-avrsim: %s: cannot write\n", tmp.c_str());
+      return;
+    }
+  }
+  std::rename(tmp.c_str(), path.c_str());  // readers never see half a file
+}
+
+// Exit without uart_pty_stop(): it joins a reader thread that never returns.
+[[noreturn]] void finish(Board& board, const Probes& probes, const std::string& json_path, int code) {
+  std::string err;
+  if (!board.save_eeprom(err)) std::fprintf(stderr, "rbx1-avrsim: %s\n", err.c_str());
+  if (!json_path.empty()) write_json(probes, json_path);
+  std::fflush(stdout);
+  std::fflush(stderr);
+  _exit(code);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"rbx1-avrsim: the RBX1 firmware ELF under simavr (atmega2560, 16 MHz), UART0 on a pty"};
+  std::string elf = default_elf(), control, json_path, eeprom;
+  bool fast = false;
+  int isr_vector = -1;
+  double max_seconds = 0;
+  uint32_t uart_baud = 0;
+  app.add_option("--elf", elf, "firmware ELF")->capture_default_str();
+  app.add_option("--control", control, "control FIFO (estop 0|1, limit J 0|1, reset, stats FILE, quit)");
+  app.add_option("--json", json_path, "write the measurements here on exit");
+  app.add_flag("--fast", fast, "run as fast as possible instead of in real time");
+  app.add_option("--eeprom", eeprom, "keep the EEPROM in this file across runs");
+  app.add_option("--isr-vector", isr_vector, "the step interrupt's vector number (default: the vector that pulses STEP)");
+  app.add_option("--max-seconds", max_seconds, "exit by itself after this many wall-clock seconds (0: never)");
+  app.add_option("--uart-baud", uart_baud,
+                 "time UART0 bytes at this line rate instead of the firmware's UBRR0 (benchmarks)");
+  CLI11_PARSE(app, argc, argv);
+
+  Board board;
+  std::string error;
+  if (!board.open(elf, eeprom, error)) {
+    std::fprintf(stderr, "rbx1-avrsim: %s\n", error.c_str());
+    return 2;
+  }
+  ControlFifo fifo;
+  if (!control.empty() && !fifo.open(control, error)) {
+    std::fprintf(stderr, "rbx1-avrsim: %s\n", error.c_str());
+    return 2;
+  }
+  Probes probes;
+  probes.attach(board.avr(), isr_vector);
+
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigaction(SIGTERM, &sa, nullptr);
+  sigaction(SIGINT, &sa, nullptr);
+  signal(SIGPIPE, SIG_IGN);
+
+  std::printf("%s\n", board.pty_path());
+  std::fflush(stdout);
+
+  avr_t* avr = board.avr();
+  const double hz = avr->frequency;
+  const avr_cycle_count_t slice = avr->frequency / 1000;  // control and pacing every simulated millisecond
+  const double max_lag = 0.200;  // behind real time by more than this (host overloaded): drop the debt
+  double t0 = now_s();
+  const double started = t0;
+  avr_cycle_count_t c0 = avr->cycle;
+  std::string line;
+
+  while (!g_stop) {
+    const avr_cycle_count_t until = avr->cycle + slice;
+    while (avr->cycle < until) {
+      int state = avr_run(avr);
+      if (state == cpu_Done || state == cpu_Crashed) {
+        std::fprintf(stderr, "rbx1-avrsim: the firmware %s at pc 0x%x, cycle %llu\n",
+                     state == cpu_Crashed ? "crashed" : "stopped", avr->pc,
+                     static_cast<unsigned long long>(avr->cycle));
+        finish(board, probes, json_path, 1);
+      }
+    }
+    board.set_uart_timing(uart_baud);
+    while (fifo.next(line)) {
+      std::istringstream in(line);
+      std::string cmd;
+      in >> cmd;
+      int a = -1, b = -1;
+      std::string arg;
+      if (cmd == "estop" && (in >> a) && (a == 0 || a == 1)) {
+        board.set_estop(a == 1);
+        if (a == 1) probes.on_estop_edge();
+      } else if (cmd == "limit" && (in >> a >> b) && a >= 1 && a <= 6 && (b == 0 || b == 1)) {
+        board.set_limit(a - 1, b == 1);
+      } else if (cmd == "reset") {
+        board.reset();
+        probes.on_reset();
+      } else if (cmd == "stats" && (in >> arg)) {
+        write_json(probes, arg);  // a snapshot while running (benchmarks diff two of them)
+      } else if (cmd == "quit") {
+        g_stop = 1;
+      } else if (!cmd.empty()) {
+        std::fprintf(stderr, "rbx1-avrsim: unknown control command '%s'\n", line.c_str());
+      }
+    }
+    const double now = now_s();
+    if (max_seconds > 0 && now - started > max_seconds) {
+      std::fprintf(stderr, "rbx1-avrsim: --max-seconds reached\n");
+      break;
+    }
+    if (fast) continue;
+    const double ahead = (avr->cycle - c0) / hz - (now - t0);
+    if (ahead > 0) {
+      timespec ts{0, static_cast<long>(ahead * 1e9)};
+      nanosleep(&ts, nullptr);
+    } else if (-ahead > max_lag) {
+      t0 = now - max_lag;  // forgive the debt: a burst would make firmware timeouts fire early
+      c0 = avr->cycle;
+    }
+  }
+  finish(board, probes, json_path, 0);
+}

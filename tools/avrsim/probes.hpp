@@ -1,0 +1,70 @@
+// probes.hpp - what rbx1-avrsim measures on the simulated board: STEP pulses with DIR per joint, interrupt
+// durations per vector (the step ISR among them), and the e-stop latency.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+extern "C" {
+#include "sim_avr.h"
+}
+
+namespace rbx1::avrsim {
+
+struct VectorStats {
+  uint64_t count = 0, total = 0, max = 0;        // every call
+  uint64_t step_calls = 0, step_total = 0, step_max = 0;  // calls that raised at least one STEP pulse
+  uint64_t pulses = 0;                           // STEP rising edges raised inside this vector
+};
+
+class Probes {
+ public:
+  // Hooks the STEP/DIR/EN pins of the pin map and every interrupt vector of avr. isr_vector < 0: the step ISR is
+  // the vector that raised the most STEP pulses.
+  void attach(avr_t* avr, int isr_vector);
+  // The board was reset: no interrupt is running any more.
+  void on_reset();
+  // The e-stop input was just asserted (at the current cycle).
+  void on_estop_edge();
+  nlohmann::json to_json() const;
+  int step_vector() const;
+
+ private:
+  static void on_step(avr_irq_t* irq, uint32_t value, void* param);
+  static void on_enable(avr_irq_t* irq, uint32_t value, void* param);
+  static void on_vector(avr_irq_t* irq, uint32_t value, void* param);
+  void step_edge(int joint, uint32_t value);
+  void finish_estop_event();
+
+  avr_t* avr_ = nullptr;
+  int forced_vector_ = -1;
+  std::array<int64_t, 6> steps_{};
+  std::array<uint64_t, 6> pulses_{};
+  std::array<uint8_t, 6> step_level_{};  // reset level of a port pin: 0
+  std::array<uint8_t, 6> enable_level_{};
+
+  struct Running {
+    uint8_t vector;
+    uint64_t entry;
+    uint64_t pulses;
+  };
+  std::vector<Running> running_;           // nested interrupts, innermost last
+  std::array<VectorStats, 64> vectors_{};
+
+  // e-stop: cycles from the input edge to the last STEP pulse after it, worst over edges met while moving.
+  uint64_t first_pulse_cycle_ = 0;
+  uint64_t last_pulse_cycle_ = 0;
+  bool any_pulse_ = false;
+  bool estop_open_ = false;        // an edge met while moving, still collecting pulses
+  uint64_t estop_edge_ = 0;
+  uint64_t estop_last_pulse_ = 0;  // 0: none after the edge
+  uint64_t estop_disabled_at_ = 0; // cycle when every driver was disabled after the edge, 0: not yet
+  int estop_events_ = 0;
+  int64_t estop_worst_ = -1;
+  int64_t estop_disable_worst_ = -1;
+};
+
+}  // namespace rbx1::avrsim

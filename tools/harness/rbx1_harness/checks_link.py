@@ -1,0 +1,174 @@
+"""checks_link.py - handshake, framing, NAKs, resynchronisation after garbage, at-most-once execution."""
+import random
+import time
+
+from rbx1proto import frame, messages
+from rbx1proto.messages import Cap, MsgType, State, Status
+
+from .board import brief
+from .runner import check, expect
+
+
+def naks(events, seq=None):
+    """(seq, reason) of every NAK frame among events (optionally only for seq)."""
+    out = []
+    for ev in events:
+        if isinstance(ev, frame.Frame) and ev.type == MsgType.NAK and (seq is None or ev.seq == seq):
+            out.append((ev.seq, messages.unpack_nak(ev.payload)["reason"]))
+    return out
+
+
+def responses(events, msg_type, seq):
+    return [ev for ev in events if isinstance(ev, frame.Frame) and ev.type == (msg_type | 0x80) and ev.seq == seq]
+
+
+def unchanged(board, before):
+    """Nothing was executed: same moves_done and positions, queue empty, IDLE."""
+    s = board.status()
+    expect(s["moves_done"] == before["moves_done"], f"moves_done changed: {before['moves_done']} -> {s['moves_done']}")
+    expect(s["position"] == before["position"], f"positions changed: {before['position']} -> {s['position']}")
+    expect(s["state"] == State.IDLE and s["queue_free"] == board.queue_size, f"something was queued: {brief(s)}")
+
+
+@check("handshake")
+def handshake(b):
+    r = b.ok(MsgType.HELLO, proto_version=messages.PROTO_VERSION)
+    expect(r["proto_version"] == messages.PROTO_VERSION, f"proto_version {r['proto_version']}")
+    expect(r["joints"] == 6, f"joints {r['joints']}")
+    expect(r["queue_size"] >= 2, f"queue_size {r['queue_size']}")
+    expect(r["capabilities"] & ~int(sum(Cap)) == 0, f"unknown capability bits {r['capabilities']:#06x}")
+    # last_seq is the SEQ of the last executed request, so the host can continue after it.
+    seq = b.link.seq
+    b.status()
+    r = b.ok(MsgType.HELLO, proto_version=messages.PROTO_VERSION)
+    expect(r["last_seq"] == seq, f"last_seq {r['last_seq']}, the previous request had SEQ {seq}")
+    r = b.refused(MsgType.HELLO, Status.BAD_VERSION, proto_version=messages.PROTO_VERSION + 1)
+    expect(r["proto_version"] == messages.PROTO_VERSION and r["joints"] == 6, f"BAD_VERSION fields not filled: {r}")
+
+
+@check("status_and_heartbeat")
+def status_and_heartbeat(b):
+    s = b.status()
+    expect(s["state"] == State.IDLE, f"not IDLE after prepare: {brief(s)}")
+    expect(s["homed"] == 0x3F and s["enabled"] == 1, f"SET_POSITION/ENABLE not reflected: {brief(s)}")
+    expect(s["position"] == [0] * 6 and s["queue_free"] == b.queue_size, brief(s))
+    b.ok(MsgType.HEARTBEAT)
+    b.ok(MsgType.SET_POSITION, position=[11, -22, 33, -44, 55, -66])
+    expect(b.status()["position"] == [11, -22, 33, -44, 55, -66], "SET_POSITION not reflected in STATUS")
+
+
+@check("unknown_type_nak")
+def unknown_type_nak(b):
+    before = b.status()
+    for t in (0x33, 0x7F, 0x82):  # unknown, NAK (firmware only), a response type
+        seq = b.next_seq()
+        ev = b.exchange_raw(frame.encode(seq, t, b""), until=lambda e: naks(e))
+        expect(naks(ev) == [(seq, Status.UNKNOWN_TYPE)], f"type {t:#04x}: expected NAK UNKNOWN_TYPE seq {seq}, got {ev}")
+    unchanged(b, before)
+
+
+@check("wrong_length_nak")
+def wrong_length_nak(b):
+    before = b.status()
+    for t, payload in ((MsgType.STATUS, b"\x00"), (MsgType.MOVE, bytes(25)), (MsgType.MOVE, bytes(27))):
+        seq = b.next_seq()
+        ev = b.exchange_raw(frame.encode(seq, t, payload), until=lambda e: e)
+        ok = naks(ev) == [(seq, Status.BAD_LENGTH)] or \
+            [r.payload[:1] for r in responses(ev, t, seq)] == [bytes([Status.BAD_LENGTH])]
+        expect(ok, f"{t.name} with {len(payload)} payload bytes: expected BAD_LENGTH, got {ev}")
+    unchanged(b, before)
+
+
+@check("corrupt_frame_nak")
+def corrupt_frame_nak(b):
+    before = b.status()
+    seq, wire = b.frame(MsgType.MOVE, target=[100] * 6, duration_ms=0)
+    bad = bytearray(wire)
+    bad[6] ^= 0x01  # a payload bit: the CRC no longer matches
+    ev = b.exchange_raw(bytes(bad), until=lambda e: naks(e))
+    expect(naks(ev) == [(seq, Status.BAD_CRC)], f"expected NAK BAD_CRC seq {seq}, got {ev}")
+    bad = bytearray(wire)
+    bad[-1] ^= 0xFF  # the CRC itself
+    ev = b.exchange_raw(bytes(bad), until=lambda e: naks(e))
+    expect(naks(ev) == [(seq, Status.BAD_CRC)], f"expected NAK BAD_CRC seq {seq}, got {ev}")
+    unchanged(b, before)
+
+
+@check("length_over_max_nak")
+def length_over_max_nak(b):
+    before = b.status()
+    seq = b.next_seq()
+    ev = b.exchange_raw(bytes([frame.SYNC, frame.MAX_PAYLOAD + 1, seq, MsgType.MOVE]), until=lambda e: naks(e))
+    expect([r for _, r in naks(ev)] == [Status.BAD_LENGTH], f"LEN 59: expected NAK BAD_LENGTH, got {ev}")
+    unchanged(b, before)
+
+
+@check("garbage_resync")
+def garbage_resync(b):
+    before = b.status()
+    rng = random.Random(1)
+    clean = bytes(rng.choice([x for x in range(256) if x != frame.SYNC]) for _ in range(300))
+    b.link.send_raw(clean)
+    r0 = b.link.retransmissions
+    b.status()
+    expect(b.link.retransmissions == r0, "garbage without SYNC bytes cost a retransmission")
+    # Garbage with SYNC bytes may hold the receiver in a false frame for up to the inter-byte timeout; the
+    # Link's retransmission must then get through.
+    noisy = bytes(rng.randrange(256) for _ in range(300)) + bytes([frame.SYNC] * 5)
+    b.link.send_raw(noisy)
+    b.status()
+    unchanged(b, before)
+
+
+@check("frame_hidden_in_corrupt_frame")
+def frame_hidden_in_corrupt_frame(b):
+    before = b.status()
+    outer_seq = b.next_seq()
+    inner_seq, inner = b.frame(MsgType.STATUS)
+    body = bytes([30, outer_seq, MsgType.MOVE]) + inner + bytes(30 - len(inner))
+    outer = bytes([frame.SYNC]) + body + b"\x00\x00"  # wrong CRC
+    ev = b.exchange_raw(outer, until=lambda e: responses(e, MsgType.STATUS, inner_seq) and naks(e))
+    expect(naks(ev) == [(outer_seq, Status.BAD_CRC)], f"outer frame: expected NAK BAD_CRC, got {ev}")
+    expect(len(responses(ev, MsgType.STATUS, inner_seq)) == 1, f"the hidden STATUS frame was not answered: {ev}")
+    unchanged(b, before)
+
+
+@check("partial_frame_timeout")
+def partial_frame_timeout(b):
+    seq, wire = b.frame(MsgType.STATUS)
+    b.link.send_raw(wire[:4])
+    time.sleep(0.15)  # > 50 ms inter-byte timeout: the partial frame is dropped silently
+    seq2, wire2 = b.frame(MsgType.STATUS)
+    ev = b.exchange_raw(wire2, until=lambda e: responses(e, MsgType.STATUS, seq2), timeout=0.5)
+    expect(len(responses(ev, MsgType.STATUS, seq2)) == 1, f"no answer after a timed-out partial frame: {ev}")
+    expect(not naks(ev), f"the partial frame was not dropped by the inter-byte timeout: {naks(ev)}")
+
+
+@check("duplicate_not_reexecuted")
+def duplicate_not_reexecuted(b):
+    before = b.status()
+    target = [120, -80, 40, 0, -20, 10]
+    seq, wire = b.frame(MsgType.MOVE, target=target, duration_ms=0)
+    first = b.exchange_raw(wire, until=lambda e: responses(e, MsgType.MOVE, seq))
+    again = b.exchange_raw(wire, until=lambda e: responses(e, MsgType.MOVE, seq))  # a retransmission
+    r1, r2 = responses(first, MsgType.MOVE, seq), responses(again, MsgType.MOVE, seq)
+    expect(len(r1) == 1 and r1[0].payload[0] == Status.OK, f"MOVE not accepted: {first}")
+    expect(len(r2) == 1 and r2[0].payload == r1[0].payload, f"duplicate not answered with the same response: {again}")
+    s = b.wait_idle()
+    expect(s["moves_done"] == (before["moves_done"] + 1) & 0xFFFF,
+           f"the duplicate was executed again: moves_done {before['moves_done']} -> {s['moves_done']}")
+    expect(s["position"] == target, f"position {s['position']} != {target}")
+
+
+@check("same_seq_new_crc_is_new")
+def same_seq_new_crc_is_new(b):
+    before = b.status()
+    seq, wire_a = b.frame(MsgType.MOVE, target=[50, 0, 0, 0, 0, 0], duration_ms=0)
+    _, wire_b = b.frame(MsgType.MOVE, seq=seq, target=[90, 0, 0, 0, 0, 0], duration_ms=0)
+    for w in (wire_a, wire_b):
+        ev = b.exchange_raw(w, until=lambda e: responses(e, MsgType.MOVE, seq))
+        r = responses(ev, MsgType.MOVE, seq)
+        expect(len(r) == 1 and r[0].payload[0] == Status.OK, f"MOVE not accepted: {ev}")
+    s = b.wait_idle()
+    expect(s["moves_done"] == (before["moves_done"] + 2) & 0xFFFF, f"moves_done {s['moves_done']}: expected +2")
+    expect(s["position"][0] == 90, f"position {s['position']}: the second frame was not executed")

@@ -1,0 +1,99 @@
+"""checks_safety.py - ESTOP by message and by input, limit switches, heartbeat loss: all stop motion and latch
+their fault until CLEAR_FAULT."""
+import time
+
+from rbx1proto.messages import Fault, Input, Key, MsgType, State, Status
+
+from .board import brief, latching
+from .checks_link import responses
+from .checks_motion import LONG, start_long_move
+from .runner import check, expect
+
+
+def frozen(b, s, what):
+    """Positions no longer change after a stop."""
+    time.sleep(0.15)
+    s2 = b.status()
+    expect(s2["position"] == s["position"], f"still stepping after {what}: {s['position']} -> {s2['position']}")
+    expect(0 < s["position"][0] < LONG[0], f"{what} did not interrupt the move: {brief(s)}")
+
+
+def clears(b):
+    b.ok(MsgType.CLEAR_FAULT)
+    s = b.status()
+    expect(s["state"] == State.IDLE and latching(s["faults"]) == 0, f"after CLEAR_FAULT: {brief(s)}")
+    b.ok(MsgType.ENABLE, enable=1)
+    r = b.move([0] * 6)
+    expect(r["status"] == Status.OK, f"MOVE after CLEAR_FAULT: {r}")
+    b.wait_idle(timeout=3.0)
+
+
+@check("estop_message_latches")
+def estop_message_latches(b):
+    start_long_move(b)
+    seq, wire = b.frame(MsgType.ESTOP)
+    ev = b.exchange_raw(wire, until=lambda e: responses(e, MsgType.ESTOP, seq))
+    r = responses(ev, MsgType.ESTOP, seq)
+    expect(len(r) == 1 and r[0].payload[0] == Status.OK, f"ESTOP: {ev}")
+    s = b.status()
+    expect(s["state"] == State.FAULT and s["faults"] & Fault.ESTOP_COMMAND, f"after ESTOP: {brief(s)}")
+    expect(s["queue_free"] == b.queue_size, f"queue not flushed: {brief(s)}")
+    frozen(b, s, "ESTOP")
+    b.refused(MsgType.MOVE, Status.FAULT_ACTIVE, target=[0] * 6, duration_ms=0)
+    b.refused(MsgType.GRIPPER, Status.FAULT_ACTIVE, pulse_us=1500, dwell_ms=0)
+    # ESTOP is exempt from duplicate suppression: the same frame again acts (and answers) again.
+    ev = b.exchange_raw(wire, until=lambda e: responses(e, MsgType.ESTOP, seq))
+    expect(len(responses(ev, MsgType.ESTOP, seq)) == 1, f"repeated ESTOP not answered: {ev}")
+    expect(b.status()["state"] == State.FAULT, "not in FAULT after a repeated ESTOP")
+    clears(b)
+
+
+@check("estop_input_latches", control=True)
+def estop_input_latches(b):
+    start_long_move(b)
+    b.ctl("estop 1")
+    s = b.wait(lambda s: s["state"] == State.FAULT, 1.0, "FAULT after the e-stop input")
+    expect(s["faults"] & Fault.ESTOP_INPUT and s["inputs"] & Input.ESTOP, f"after the e-stop input: {brief(s)}")
+    frozen(b, s, "the e-stop input")
+    b.refused(MsgType.CLEAR_FAULT, Status.ESTOP_ACTIVE)
+    b.refused(MsgType.MOVE, Status.FAULT_ACTIVE, target=[0] * 6, duration_ms=0)
+    b.ctl("estop 0")
+    b.wait(lambda s: not s["inputs"] & Input.ESTOP, 1.0, "the e-stop input released")
+    expect(b.status()["state"] == State.FAULT, "the fault did not stay latched after releasing the input")
+    clears(b)
+
+
+@check("limit_switch_latches", control=True)
+def limit_switch_latches(b):
+    b.ctl("limit 3 1")
+    s = b.wait(lambda s: s["inputs"] & Input.LIMIT_J3, 1.0, "limit 3 in STATUS.inputs")
+    b.ctl("limit 3 0")
+    b.wait(lambda s: not s["inputs"] & Input.LIMIT_J3, 1.0, "limit 3 released")
+    start_long_move(b)
+    b.ctl("limit 1 1")
+    s = b.wait(lambda s: s["state"] == State.FAULT, 1.0, "FAULT after a limit switch during a move")
+    expect(s["faults"] & Fault.LIMIT_HIT and s["inputs"] & Input.LIMIT_J1, f"after the limit switch: {brief(s)}")
+    frozen(b, s, "the limit switch")
+    b.ctl("limit 1 0")
+    b.wait(lambda s: not s["inputs"] & Input.LIMIT_J1, 1.0, "limit 1 released")
+    clears(b)
+
+
+@check("heartbeat_loss")
+def heartbeat_loss(b):
+    b.set(0xFF, Key.HEARTBEAT_MS, 200)
+    try:
+        time.sleep(0.4)  # IDLE: silence is allowed
+        s = b.status()
+        expect(latching(s["faults"]) == 0 and s["state"] == State.IDLE, f"heartbeat fault while IDLE: {brief(s)}")
+        start_long_move(b)
+        time.sleep(0.6)  # silence while MOVING: controlled stop and HEARTBEAT_LOST
+        s = b.wait(lambda s: s["state"] == State.FAULT, 1.0, "FAULT after heartbeat loss")
+        expect(s["faults"] & Fault.HEARTBEAT_LOST, f"after heartbeat loss: {brief(s)}")
+        expect(s["queue_free"] == b.queue_size, f"queue not flushed: {brief(s)}")
+        frozen(b, s, "heartbeat loss")
+        clears(b)
+    finally:
+        b.wait(lambda s: s["state"] in (State.IDLE, State.FAULT), 2.0, "rest")
+        b.ok(MsgType.CLEAR_FAULT)
+        b.set(0xFF, Key.HEARTBEAT_MS, 1000)

@@ -1,0 +1,1 @@
+"""scenegen - synthetic table scenes with exact ground truth for the rbx1 perception pipeline."""

@@ -1,0 +1,91 @@
+"""shapes.py - the object catalogue: each class is one rigid object with fixed dimensions (cm), as a polygon."""
+import math
+
+import numpy as np
+
+
+def _rect(w, h):
+    return np.array([[-w / 2, -h / 2], [w / 2, -h / 2], [w / 2, h / 2], [-w / 2, h / 2]], float)
+
+
+def _ellipse(a, b, n=256):
+    t = np.arange(n) * 2 * math.pi / n
+    return np.column_stack([a * np.cos(t), b * np.sin(t)])
+
+
+def _rounded_rect(w, h, r, n_arc=32):
+    pts = []
+    for cx, cy, start in ((w / 2 - r, h / 2 - r, 0.0), (-w / 2 + r, h / 2 - r, 90.0),
+                          (-w / 2 + r, -h / 2 + r, 180.0), (w / 2 - r, -h / 2 + r, 270.0)):
+        for k in range(n_arc + 1):
+            t = math.radians(start + 90.0 * k / n_arc)
+            pts.append([cx + r * math.cos(t), cy + r * math.sin(t)])
+    return np.array(pts, float)
+
+
+def _l_shape(length, height, thickness):
+    # Long arm along +x at the bottom (y down is "bottom" in the image), short arm up at the left end.
+    return np.array([[0, 0], [thickness, 0], [thickness, height - thickness], [length, height - thickness],
+                     [length, height], [0, height]], float)
+
+
+def _t_shape(bar_w, bar_h, stem_w, stem_h):
+    return np.array([[-bar_w / 2, 0], [bar_w / 2, 0], [bar_w / 2, bar_h], [stem_w / 2, bar_h],
+                     [stem_w / 2, bar_h + stem_h], [-stem_w / 2, bar_h + stem_h], [-stem_w / 2, bar_h],
+                     [-bar_w / 2, bar_h]], float)
+
+
+def _star(points, r_out, r_in):
+    pts = []
+    for k in range(2 * points):
+        r = r_out if k % 2 == 0 else r_in
+        t = -math.pi / 2 + k * math.pi / points
+        pts.append([r * math.cos(t), r * math.sin(t)])
+    return np.array(pts, float)
+
+
+def _regular(n, r):
+    t = np.arange(n) * 2 * math.pi / n
+    return np.column_stack([r * np.cos(t), r * np.sin(t)])
+
+
+def _mirror(poly):
+    # Mirror about the y axis; reverse the order to keep the winding.
+    m = poly.copy()
+    m[:, 0] = -m[:, 0]
+    return m[::-1].copy()
+
+
+# name -> (polygon in cm, description). Sizes are 1-4 cm like the paper's objects on its 12 cm x 12 cm scene.
+CLASSES = {
+    "rectangle": (_rect(3.0, 1.5), "3.0 x 1.5 cm rectangle"),
+    "ellipse": (_ellipse(1.45, 0.8), "2.9 x 1.6 cm ellipse"),
+    "rounded_rect": (_rounded_rect(3.4, 1.9, 0.55), "3.4 x 1.9 cm rectangle, 0.55 cm corner radius"),
+    "l_shape": (_l_shape(3.2, 1.9, 0.75), "L: 3.2 cm long arm, 1.9 cm short arm, 0.75 cm thick"),
+    "l_mirror": (_mirror(_l_shape(3.2, 1.9, 0.75)), "the mirror image of l_shape"),
+    "t_shape": (_t_shape(3.0, 0.75, 0.8, 1.5), "T: 3.0 x 0.75 cm bar, 0.8 x 1.5 cm stem"),
+    "triangle": (np.array([[0, 0], [3.3, 0], [0.9, 1.7]], float), "scalene triangle 3.3 cm base, 1.7 cm high"),
+    "star": (_star(5, 1.45, 0.62), "five-pointed star, 1.45 / 0.62 cm radii"),
+    "near_circle": (_ellipse(1.1, 1.03), "almost round disc, 2.2 x 2.06 cm"),
+    "hexagon": (_regular(6, 1.25), "regular hexagon, 1.25 cm corner radius"),
+}
+
+MIRROR_PAIRS = [("l_shape", "l_mirror")]
+
+
+def class_names():
+    return list(CLASSES)
+
+
+def polygon_cm(name):
+    """The class's polygon in its own frame (cm), centred on its area centroid."""
+    from .truth import area_centroid
+    poly = CLASSES[name][0]
+    return poly - area_centroid(poly)
+
+
+def place(poly_cm, px_per_cm, angle_deg, centre_px):
+    """Rotate (from +x towards +y, degrees), scale to pixels and move the area centroid to centre_px."""
+    t = math.radians(angle_deg)
+    rot = np.array([[math.cos(t), -math.sin(t)], [math.sin(t), math.cos(t)]])
+    return (poly_cm * px_per_cm) @ rot.T + np.asarray(centre_px, float)

@@ -1,0 +1,5 @@
+"""conftest.py - makes the scenegen package importable from the tests."""
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
