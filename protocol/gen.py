@@ -320,7 +320,7 @@ def gen_c(spec, msgs):
 
 
 def py_fields(fields):
-    return "(" + "".join(f"({f.name!r}, {f.type!r}, {f.count if f.is_array else 0}), " for f in fields) + ")"
+    return repr(tuple((f.name, f.type, f.count if f.is_array else 0) for f in fields))
 
 
 def gen_py(spec, msgs):

@@ -48,6 +48,7 @@ void read_joint(Section s, JointConfig& j) {
   j.motor_steps = int(s.integer("motor_steps", j.motor_steps, 1, 1000));
   j.microsteps = int(s.integer("microsteps", j.microsteps, 1, 256));
   // +-360 keeps every step count of the range within int32 for any reduction and microstepping allowed above.
+  const double default_min = j.min_deg, default_max = j.max_deg;
   j.min_deg = s.number("min_deg", j.min_deg, -360.0, 360.0);
   j.max_deg = s.number("max_deg", j.max_deg, -360.0, 360.0);
   int64_t dir = s.integer("direction", j.direction, -1, 1);
@@ -57,8 +58,11 @@ void read_joint(Section s, JointConfig& j) {
     j.direction = int(dir);
   }
   j.zero_deg = s.number("zero_deg", j.zero_deg, -360.0, 360.0);
-  if (j.min_deg >= j.max_deg)
+  if (j.min_deg >= j.max_deg) {
     s.errors().add(s.path() + ".min_deg", "must be below max_deg (" + fmt(j.min_deg) + " >= " + fmt(j.max_deg) + ")");
+    j.min_deg = default_min;  // keep the defaults, so checks against the limits do not report this again
+    j.max_deg = default_max;
+  }
   s.reject_unknown();
 }
 

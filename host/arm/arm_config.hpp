@@ -49,7 +49,7 @@ struct GripperConfig {
 // arm base frame when the arm is at the scan pose: base = origin + R(rotation) * F * 10 * p_cm,
 // F = diag(1, -1) when flip_y (an image seen from above is mirrored), else identity.
 struct CameraMount {
-  double origin_x_mm = 350.0, origin_y_mm = 100.0;  // base-frame position of the vision frame's origin
+  double origin_x_mm = 370.0, origin_y_mm = 100.0;  // base-frame position of the vision frame's origin
   double rotation_deg = -90.0;                      // from base +x towards base +y
   bool flip_y = true;
   bool operator==(const CameraMount&) const = default;
@@ -89,7 +89,7 @@ struct ArmConfig {
   }};
   GripperConfig gripper;
   Joints home{0, 0, 0, 0, 0, 0};      // arm straight up
-  Joints scan{0, 15, 60, 0, 105, 0};  // tool pointing straight down above the scan area
+  Joints scan{0, 20, 60, 0, 100, 0};  // tool (and camera) straight down at about (287, 0, 388) mm
   CameraMount camera;
   std::map<std::string, Place> places{{"tray", Place{150.0, 250.0, 5.0, 0.0}}};
   Heights heights;

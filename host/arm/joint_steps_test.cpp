@@ -20,7 +20,7 @@ TEST(JointSteps, KnownAnglesGiveKnownCounts) {
   EXPECT_EQ(angle_to_steps(c.joints[0], -1.0), -95);
   EXPECT_EQ(angle_to_steps(c.joints[4], 120.0), 4981); // 4981.33
   EXPECT_EQ(angle_to_steps(c.joints[2], 50.0), 9556);  // 9555.56
-  EXPECT_EQ(joints_to_steps(c, c.scan), (Steps{0, 667, 11467, 0, 4359, 0}));  // 666.67, 11466.67, 4358.67
+  EXPECT_EQ(joints_to_steps(c, c.scan), (Steps{0, 889, 11467, 0, 4151, 0}));  // 888.89, 11466.67, 4151.11
   EXPECT_DOUBLE_EQ(steps_per_rev(c.joints[2]), 68800.0);
 }
 

@@ -257,3 +257,26 @@ TEST(Kinematics, Normalisation) {
   EXPECT_DOUBLE_EQ(normalize_axis_deg(135), -45);
   EXPECT_DOUBLE_EQ(normalize_axis_deg(-100), 80);
 }
+
+TEST(Kinematics, StandardDhTableOfTheReadmeGivesTheSameChain) {
+  // README: theta = (q1, q2 - 90, q3 + 90, q4, q5, q6), d = (base, 0, 0, forearm, 0, tool),
+  // a = (0, upper_arm, 0, 0, 0, 0), alpha = (-90, 0, 90, -90, 90, 0); T_i = Rz(theta) Tz(d) Tx(a) Rx(alpha).
+  const Links l;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-180.0, 180.0);
+  auto r = [](double d) { return d * M_PI / 180; };
+  for (int n = 0; n < 200; ++n) {
+    Joints q{u(rng), u(rng), u(rng), u(rng), u(rng), u(rng)};
+    const double theta[6] = {q[0], q[1] - 90, q[2] + 90, q[3], q[4], q[5]};
+    const double d[6] = {l.base_height_mm, 0, 0, l.forearm_mm, 0, l.tool_mm};
+    const double a[6] = {0, l.upper_arm_mm, 0, 0, 0, 0};
+    const double alpha[6] = {-90, 0, 90, -90, 90, 0};
+    Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+    for (int i = 0; i < 6; ++i) {
+      t.rotate(Eigen::AngleAxisd(r(theta[i]), Eigen::Vector3d::UnitZ()));
+      t.translate(Eigen::Vector3d(a[i], 0, d[i]));
+      t.rotate(Eigen::AngleAxisd(r(alpha[i]), Eigen::Vector3d::UnitX()));
+    }
+    ASSERT_TRUE(t.matrix().isApprox(fk(l, q).matrix(), 1e-12)) << n;
+  }
+}

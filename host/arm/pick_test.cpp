@@ -44,7 +44,7 @@ TEST(Gripper, OpeningToPulse) {
 TEST(Pick, HomeAndScanSteps) {
   const ArmConfig c;
   EXPECT_EQ(home_steps(c), (Steps{0, 0, 0, 0, 0, 0}));
-  EXPECT_EQ(scan_steps(c), (Steps{0, 667, 11467, 0, 4359, 0}));
+  EXPECT_EQ(scan_steps(c), (Steps{0, 889, 11467, 0, 4151, 0}));
 }
 
 TEST(Pick, MoveDuration) {
@@ -56,13 +56,13 @@ TEST(Pick, MoveDuration) {
   std::string error;
   ASSERT_TRUE(plan_move(c, "scan", home_steps(c), c.scan, w, error)) << error;
   EXPECT_EQ(w.steps, scan_steps(c));
-  EXPECT_EQ(w.duration_ms, 5250);  // J5 turns 105 deg
+  EXPECT_EQ(w.duration_ms, 5000);  // J5 turns 4151 steps = 99.9973 deg
   EXPECT_FALSE(plan_move(c, "scan", home_steps(c), Joints{0, 0, 0, 0, 120, 0}, w, error));
   EXPECT_EQ(error, "scan: J5 (wrist pitch) at 120.00 deg is above its limit max_deg = 115 (arm.joints.j5.max_deg)");
   ArmConfig slow;
   slow.speeds.joint_speed_deg_s = 1;
   EXPECT_FALSE(plan_move(slow, "scan", home_steps(c), c.scan, w, error));
-  EXPECT_EQ(error.rfind("scan: the move would take 120000 ms", 0), 0u) << error;
+  EXPECT_EQ(error.rfind("scan: the move would take 99998 ms", 0), 0u) << error;
 }
 
 TEST(Pick, WaypointsInOrderWithTheirContents) {
@@ -183,4 +183,26 @@ TEST(Pick, Errors) {
   EXPECT_FALSE(plan_pick(tight, home_steps(c), PickObject{0, 300, 0, 10, 10}, "tray", w, error));
   EXPECT_NE(error.find("J1 (base yaw)"), std::string::npos) << error;
   EXPECT_EQ(error.rfind("approach: ", 0), 0u) << error;
+}
+
+TEST(Pick, EveryPointOfTheDefaultViewIsPickable) {
+  // The default mount and scan pose cover a 20 x 15 cm view (800 x 600 px at 40 px/cm): all of it, at any grip
+  // angle, for objects up to 60 mm tall, goes to the tray from the scan pose.
+  const ArmConfig c;
+  int planned = 0;
+  for (double u = 0; u <= 20; u += 2.5) {
+    for (double v = 0; v <= 15; v += 2.5) {
+      for (double grip : {-90.0, -45.0, 0.0, 30.0, 89.0}) {
+        for (double height : {0.0, 20.0, 60.0}) {
+          TablePoint t = vision_to_base(c, Eigen::Vector2d(u, v), grip);
+          std::vector<Waypoint> w;
+          std::string error;
+          ASSERT_TRUE(plan_pick(c, scan_steps(c), PickObject{t.x_mm, t.y_mm, t.yaw_deg, 30, height}, "tray", w, error))
+              << "(" << u << ", " << v << ") cm, grip " << grip << ", height " << height << ": " << error;
+          ++planned;
+        }
+      }
+    }
+  }
+  EXPECT_EQ(planned, 9 * 7 * 5 * 3);
 }

@@ -20,12 +20,12 @@ TEST(VisionMap, IdentityMountScalesCmToMm) {
 }
 
 TEST(VisionMap, DefaultMountLooksForwardWithImageRightToTheArmsRight) {
-  const ArmConfig c;  // origin (350, 100), rotation -90, y mirrored
+  const ArmConfig c;  // origin (370, 100), rotation -90, y mirrored
   TablePoint corner = vision_to_base(c, Eigen::Vector2d(0, 0), 0);
-  EXPECT_NEAR(corner.x_mm, 350, 1e-9);
+  EXPECT_NEAR(corner.x_mm, 370, 1e-9);
   EXPECT_NEAR(corner.y_mm, 100, 1e-9);
   TablePoint centre = vision_to_base(c, Eigen::Vector2d(10, 7.5), 0);
-  EXPECT_NEAR(centre.x_mm, 275, 1e-9);
+  EXPECT_NEAR(centre.x_mm, 295, 1e-9);
   EXPECT_NEAR(centre.y_mm, 0, 1e-9);
   // Image right (+x) is base -y: an axis at 90. Image down (+y) is base -x: an axis at 0.
   EXPECT_NEAR(centre.yaw_deg, 90, 1e-9);
@@ -34,7 +34,7 @@ TEST(VisionMap, DefaultMountLooksForwardWithImageRightToTheArmsRight) {
   EXPECT_NEAR(vision_to_base(c, Eigen::Vector2d(10, 7.5), 45).yaw_deg, 45, 1e-9);
   EXPECT_NEAR(vision_to_base(c, Eigen::Vector2d(10, 7.5), -50).yaw_deg, -40, 1e-9);
   TablePoint far_right = vision_to_base(c, Eigen::Vector2d(20, 0), 0);
-  EXPECT_NEAR(far_right.x_mm, 350, 1e-9);
+  EXPECT_NEAR(far_right.x_mm, 370, 1e-9);
   EXPECT_NEAR(far_right.y_mm, -100, 1e-9);
 }
 

@@ -5,7 +5,10 @@
 #include <cmath>
 #include <filesystem>
 
+#include <opencv2/imgcodecs.hpp>
 #include <spdlog/spdlog.h>
+
+#include "draw.hpp"
 
 #include "joint_steps.hpp"
 #include "pick_plan.hpp"
@@ -415,8 +418,14 @@ bool Machine::capture_and_detect(Reply& reply, nlohmann::json& detections, std::
   ev["labels"] = labels;
   if (!config_.daemon.annotate.empty()) {
     std::string aerr;
-    if (write_annotated(*vision_, processed, det, config_.daemon.annotate, aerr)) ev["annotated"] = config_.daemon.annotate;
-    else spdlog::warn("annotate: {}", aerr);
+    bool written = false;
+    try {  // OpenCV reports an unwritable path by exception: keep it inside the daemon
+      written = cv::imwrite(config_.daemon.annotate, vision::annotate(processed, det, vision_->calibrated()));
+    } catch (const cv::Exception& e) {
+      aerr = e.what();
+    }
+    if (written) ev["annotated"] = config_.daemon.annotate;
+    else spdlog::warn("annotate: {}: cannot write the annotated image {}", config_.daemon.annotate, aerr);
   }
   reply.event("detected", ev);
   return true;

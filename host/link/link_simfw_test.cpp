@@ -3,6 +3,7 @@
 #include "link.hpp"
 
 #include <algorithm>
+#include <cstdlib>
 #include <csignal>
 #include <filesystem>
 #include <fstream>
@@ -17,6 +18,12 @@ using rbx1::link::Link;
 
 namespace {
 
+// The simulator to run: $RBX1_SIMFW, else build/bin/rbx1-simfw.
+const char* simfw() {
+  const char* env = getenv("RBX1_SIMFW");
+  return env && *env ? env : RBX1_SIMFW;
+}
+
 // Runs rbx1-simfw with extra arguments and reads the pty path from its first stdout line.
 class SimFw {
  public:
@@ -28,10 +35,10 @@ class SimFw {
       dup2(out[1], 1);
       ::close(out[0]);
       ::close(out[1]);
-      std::vector<char*> argv{const_cast<char*>(RBX1_SIMFW)};
+      std::vector<char*> argv{const_cast<char*>(simfw())};
       for (auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
       argv.push_back(nullptr);
-      execv(RBX1_SIMFW, argv.data());
+      execv(simfw(), argv.data());
       _exit(127);
     }
     ::close(out[1]);
@@ -66,10 +73,8 @@ class SimFw {
   std::string pty_;
 };
 
-bool have_simfw() { return access(RBX1_SIMFW, X_OK) == 0; }
-
-#define REQUIRE_SIMFW()                                                                        \
-  if (!have_simfw()) GTEST_SKIP() << RBX1_SIMFW << " not built yet (make it with the firmware targets)"
+#define REQUIRE_SIMFW()                                                                          \
+  if (access(simfw(), X_OK) != 0) GTEST_SKIP() << simfw() << " not built yet: simulator tests skipped"
 
 // Homes by declaration, enables, sends n small moves (retrying QUEUE_FULL, which executes nothing), and waits
 // for moves_done to reach n. Returns the targets sent.

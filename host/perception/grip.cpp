@@ -114,17 +114,33 @@ Grip choose_grip(const Geometry& g, const RayHits& hits, int own_label, const cv
   const double step = M_PI / lines;
   phi.clear(), d.clear();
   std::vector<double> lo(static_cast<size_t>(lines)), hi(static_cast<size_t>(lines));
-  std::vector<int> order;
+  std::vector<char> valid(static_cast<size_t>(lines), 0);
   for (int k = 0; k < lines; ++k) {
     double tmin = 0, tmax = 0;
     if (!line_from_rays(hits, k, lines, tmin, tmax)) continue;
-    lo[size_t(k)] = tmin, hi[size_t(k)] = tmax;
+    lo[size_t(k)] = tmin, hi[size_t(k)] = tmax, valid[size_t(k)] = 1;
     phi.push_back(k * step);
     d.push_back(tmax - tmin);
+  }
+  if (phi.empty()) return {};
+  // D is flat near its minimum (quadratic for parallel sides) and the sub-pixel contour carries ~0.1 px of
+  // noise, so the raw argmin wanders over the flat part. Rank lines by D averaged over +-3 degrees instead:
+  // symmetric minima stay put, and the opening reported is still the exact chord on the chosen line.
+  const int w = std::max(1, int(std::lround(3.0 / (180.0 / lines))));
+  std::vector<double> smooth(static_cast<size_t>(lines), 1e300);
+  std::vector<int> order;
+  for (int k = 0; k < lines; ++k) {
+    if (!valid[size_t(k)]) continue;
+    double acc = 0;
+    int n = 0;
+    for (int j = k - w; j <= k + w; ++j) {
+      int q = ((j % lines) + lines) % lines;  // line k + lines is line k reversed: same chord
+      if (valid[size_t(q)]) acc += hi[size_t(q)] - lo[size_t(q)], ++n;
+    }
+    smooth[size_t(k)] = acc / n;
     order.push_back(k);
   }
-  if (order.empty()) return {};
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return hi[size_t(a)] - lo[size_t(a)] < hi[size_t(b)] - lo[size_t(b)]; });
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return smooth[size_t(a)] < smooth[size_t(b)]; });
 
   auto clear_at = [&](double ph, double tmin, double tmax) {
     cv::Point2d u(std::cos(ph), std::sin(ph));
@@ -140,30 +156,7 @@ Grip choose_grip(const Geometry& g, const RayHits& hits, int own_label, const cv
   }
   bool clear = best >= 0;
   if (!clear) best = order.front();
-
-  // Refine between the neighbouring sampled lines (golden section on the exact chord).
-  double a = (best - 1) * step, b = (best + 1) * step;
-  auto chord = [&](double ph, double& tmin, double& tmax) { return chord_at(g, ph, tmin, tmax) ? tmax - tmin : 1e300; };
-  const double gr = (std::sqrt(5.0) - 1) / 2;
-  double x1 = b - gr * (b - a), x2 = a + gr * (b - a), t0, t1;
-  double f1 = chord(x1, t0, t1), f2 = chord(x2, t0, t1);
-  for (int it = 0; it < 24; ++it) {
-    if (f1 < f2) b = x2, x2 = x1, f2 = f1, x1 = b - gr * (b - a), f1 = chord(x1, t0, t1);
-    else a = x1, x1 = x2, f1 = f2, x2 = a + gr * (b - a), f2 = chord(x2, t0, t1);
-  }
-  double ph = 0.5 * (a + b), tmin = 0, tmax = 0;
-  double coarse_phi = best * step, cmin = lo[size_t(best)], cmax = hi[size_t(best)];
-  Grip out;
-  if (chord_at(g, ph, tmin, tmax) && tmax - tmin <= cmax - cmin && (!clear || clear_at(ph, tmin, tmax))) {
-    if (ph < 0 || ph >= M_PI) {  // the same line with the direction reversed
-      ph += ph < 0 ? M_PI : -M_PI;
-      std::swap(tmin, tmax);
-      tmin = -tmin, tmax = -tmax;
-    }
-    out = make_grip(g, ph, tmin, tmax);
-  } else {
-    out = make_grip(g, coarse_phi, cmin, cmax);
-  }
+  Grip out = make_grip(g, best * step, lo[size_t(best)], hi[size_t(best)]);
   out.clear = clear;
   return out;
 }

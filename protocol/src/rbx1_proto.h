@@ -52,7 +52,11 @@ typedef struct {
 } rbx1_decoder;
 
 void rbx1_decoder_init(rbx1_decoder *d, rbx1_on_frame on_frame, rbx1_on_reject on_reject, void *ctx);
-/* Feeds received bytes; callbacks run from inside this call, possibly several times. */
+/* Feeds received bytes; callbacks run from inside this call, possibly several times. A rejection resumes the hunt
+ * at the byte after the rejected SYNC. BAD_LENGTH is decided when the SEQ byte arrives, so has_seq is 1 for every
+ * rejection this decoder reports. Work is bounded: each rejection discards at least one byte, and costs at most
+ * one CRC over 61 bytes (ATmega2560 at 16 MHz: about 300 cycles per byte of valid traffic, 11.4k cycles worst case
+ * for one byte). Callbacks may call rbx1_decoder_reset but must not feed the same decoder. */
 void rbx1_decoder_feed(rbx1_decoder *d, const uint8_t *data, size_t n);
 /* Drops a partial frame (inter-byte timeout). Returns 1 if one was pending. */
 int rbx1_decoder_reset(rbx1_decoder *d);

@@ -267,3 +267,25 @@ TEST(Messages, KeyTable) {
   EXPECT_EQ(rbx1_key_lookup(0), nullptr);
   EXPECT_EQ(rbx1_key_lookup(9), nullptr);
 }
+
+TEST(Messages, BadPayloadVectorsAreRefused) {
+  const json vs = load_vectors("bad_payloads.json");
+  ASSERT_GE(vs.size(), 50u);
+  int refused = 0;
+  for (const auto& v : vs) {
+    auto payload = unhex(v["payload"]);
+    const int msg = v["msg"];
+    const auto& table = v["kind"] == "request" ? requests() : responses();
+    auto it = table.find(msg);
+    if (it == table.end()) {  // empty request payload: no struct; the length alone says it is wrong
+      EXPECT_NE(payload.size(), size_t(rbx1_request_len(static_cast<uint8_t>(msg)))) << v["name"];
+      continue;
+    }
+    json out;
+    payload.resize(RBX1_MAX_PAYLOAD + 2, 0);  // room to read past len if unpack ignored it
+    EXPECT_EQ(it->second.unpack(payload, static_cast<uint8_t>(unhex(v["payload"]).size()), &out), RBX1_BAD_LENGTH)
+        << v["name"];
+    refused++;
+  }
+  EXPECT_GT(refused, 40);
+}

@@ -174,6 +174,22 @@ def stream_vectors():
     return S
 
 
+def bad_payload_vectors():
+    """Frames that pass the CRC but whose payload length is wrong for their TYPE: unpack must refuse them."""
+    out = []
+    for t in MsgType:
+        if t == MsgType.NAK:
+            continue
+        for kind, good, ftype in (("request", messages.request_len(t), int(t)),
+                                  ("response", messages.response_len(t), int(t) | 0x80)):
+            for n in sorted({good - 1, good + 1, 58} - {-1, good}):
+                payload = bytes([0xA5]) * n
+                out.append({"name": f"{t.name} {kind} with {n} bytes", "kind": kind, "msg": int(t), "type": ftype,
+                            "payload": payload.hex(), "wire": frame.encode(3, ftype, payload).hex(),
+                            "status": "BAD_LENGTH"})
+    return out
+
+
 def crc_vectors():
     return [{"data": b"123456789".hex(), "crc": 0x29B1}, {"data": "", "crc": 0xFFFF},
             {"data": "00", "crc": frame.crc16(b"\x00")}, {"data": "a5" * 10, "crc": frame.crc16(b"\xa5" * 10)}]
@@ -186,6 +202,9 @@ def main():
                           "wire bytes in hex; crc is the frame's CRC", "vectors": message_vectors()},
         "streams.json": {"description": "byte streams and the decoder events they produce, in order, for any "
                          "chunking; pending: a partial frame remains at the end", "vectors": stream_vectors()},
+        "bad_payloads.json": {"description": "CRC-valid frames whose payload length is wrong for their type: "
+                              "unpack refuses them (BAD_LENGTH; the firmware answers a request like this with "
+                              "status BAD_LENGTH)", "vectors": bad_payload_vectors()},
         "crc.json": {"description": "CRC-16/CCITT-FALSE of data (hex)", "vectors": crc_vectors()},
     }
     for name, doc in docs.items():

@@ -142,25 +142,36 @@ void Board::set_uart_timing(uint32_t forced_baud) {
   uart0_->cycles_per_byte = per_bit * 10;  // start, 8 data, stop
 }
 
+// An input is held at its level as an "external" pull in simavr: otherwise simavr's model of the internal
+// pull-up would pull it back high on every PORT write of that port.
+void Board::drive(PortPin p, uint8_t level, bool force) {
+  Pull& pull = pulls_[static_cast<uint8_t>(p.port - 'A') & 15];
+  pull.mask |= 1u << p.bit;
+  pull.value = level ? (pull.value | (1u << p.bit)) : (pull.value & ~(1u << p.bit));
+  avr_ioport_external_t ext{};
+  ext.name = static_cast<unsigned long>(p.port) & 0x7F;
+  ext.mask = pull.mask;
+  ext.value = pull.value;
+  avr_ioctl(avr_, AVR_IOCTL_IOPORT_SET_EXTERNAL(p.port), &ext);
+  avr_irq_t* irq = pin_irq(avr_, p);
+  // After a reset the PIN register is zeroed while the IRQ remembers its old level: toggle to force it.
+  if (force) avr_raise_irq(irq, !level);
+  avr_raise_irq(irq, level);
+}
+
 void Board::drive_inputs(bool force) {
-  auto drive = [&](PortPin p, uint8_t level) {
-    avr_irq_t* irq = pin_irq(avr_, p);
-    // After a reset the PIN register is zeroed while the IRQ remembers its old level: toggle to force it.
-    if (force) avr_raise_irq(irq, !level);
-    avr_raise_irq(irq, level);
-  };
-  for (int j = 0; j < 6; j++) drive(kJoints[j].limit, limits_[j] ? kLimitActive : !kLimitActive);
-  drive(kEstop, estop_ ? kEstopActive : !kEstopActive);
+  for (int j = 0; j < 6; j++) drive(kJoints[j].limit, limits_[j] ? kLimitActive : !kLimitActive, force);
+  drive(kEstop, estop_ ? kEstopActive : !kEstopActive, force);
 }
 
 void Board::set_estop(bool asserted) {
   estop_ = asserted;
-  avr_raise_irq(pin_irq(avr_, kEstop), asserted ? kEstopActive : !kEstopActive);
+  drive(kEstop, asserted ? kEstopActive : !kEstopActive, false);
 }
 
 void Board::set_limit(int joint, bool triggered) {
   limits_[joint] = triggered;
-  avr_raise_irq(pin_irq(avr_, kJoints[joint].limit), triggered ? kLimitActive : !kLimitActive);
+  drive(kJoints[joint].limit, triggered ? kLimitActive : !kLimitActive, false);
 }
 
 void Board::reset() {

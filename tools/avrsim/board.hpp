@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <string>
 
+#include "pinmap.hpp"
+
 extern "C" {
 #include "avr_uart.h"
 #include "sim_avr.h"
@@ -32,7 +34,12 @@ class Board {
   bool save_eeprom(std::string& error);
 
  private:
+  void drive(PortPin p, uint8_t level, bool force);
   void drive_inputs(bool force);
+  struct Pull {
+    uint8_t mask = 0, value = 0;
+  };
+  std::array<Pull, 16> pulls_{};  // per port letter - 'A'
 
   avr_t* avr_ = nullptr;
   ::avr_uart_t* uart0_ = nullptr;

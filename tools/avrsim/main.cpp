@@ -144,7 +144,8 @@ int main(int argc, char** argv) {
 
   avr_t* avr = board.avr();
   const double hz = avr->frequency;
-  const avr_cycle_count_t slice = avr->frequency / 1000;  // control and pacing every simulated millisecond
+  // Control and pacing every 250 simulated microseconds: a byte from the host waits at most that long in wall time.
+  const avr_cycle_count_t slice = avr->frequency / 4000;
   const double max_lag = 0.200;  // behind real time by more than this (host overloaded): drop the debt
   double t0 = now_s();
   const double started = t0;
@@ -172,6 +173,7 @@ int main(int argc, char** argv) {
       if (cmd == "estop" && (in >> a) && (a == 0 || a == 1)) {
         board.set_estop(a == 1);
         if (a == 1) probes.on_estop_edge();
+        else probes.on_estop_release();
       } else if (cmd == "limit" && (in >> a >> b) && a >= 1 && a <= 6 && (b == 0 || b == 1)) {
         board.set_limit(a - 1, b == 1);
       } else if (cmd == "reset") {
@@ -179,6 +181,7 @@ int main(int argc, char** argv) {
         probes.on_reset();
       } else if (cmd == "stats" && (in >> arg)) {
         write_json(probes, arg);  // a snapshot while running (benchmarks diff two of them)
+        probes.start_window();
       } else if (cmd == "quit") {
         g_stop = 1;
       } else if (!cmd.empty()) {

@@ -66,6 +66,8 @@ void Probes::step_edge(int j, uint32_t value) {
   steps_[j] += dir_level == kDirPositive ? 1 : -1;
   pulses_[j]++;
   if (!any_pulse_) first_pulse_cycle_ = avr_->cycle;
+  if (!window_any_) window_first_ = avr_->cycle;
+  window_any_ = true;
   last_pulse_cycle_ = avr_->cycle;
   any_pulse_ = true;
   if (estop_open_) estop_last_pulse_ = avr_->cycle;
@@ -119,6 +121,7 @@ void Probes::on_estop_edge() {
 
 void Probes::finish_estop_event() {
   if (!estop_open_) return;
+  estop_open_ = false;
   int64_t lat = estop_last_pulse_ ? static_cast<int64_t>(estop_last_pulse_ - estop_edge_) : 0;
   estop_worst_ = std::max(estop_worst_, lat);
   if (estop_disabled_at_)
@@ -154,6 +157,7 @@ nlohmann::json Probes::to_json() const {
   isr["step_calls"] = s.step_calls;
   isr["step_mean_cycles"] = s.step_calls ? static_cast<double>(s.step_total) / s.step_calls : 0.0;
   isr["step_max_cycles"] = s.step_max;
+  isr["step_total_cycles"] = s.step_total;
   isr["pulses"] = s.pulses;
   j["isr"] = isr;
   nlohmann::json vecs = nlohmann::json::object();
@@ -169,6 +173,7 @@ nlohmann::json Probes::to_json() const {
   j["estop_events"] = copy.estop_events_;
   j["first_pulse_cycle"] = any_pulse_ ? nlohmann::json(first_pulse_cycle_) : nlohmann::json(nullptr);
   j["last_pulse_cycle"] = any_pulse_ ? nlohmann::json(last_pulse_cycle_) : nlohmann::json(nullptr);
+  j["window_first_pulse_cycle"] = window_any_ ? nlohmann::json(window_first_) : nlohmann::json(nullptr);
   j["cycles"] = avr_ ? avr_->cycle : 0;
   return j;
 }

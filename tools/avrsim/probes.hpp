@@ -27,8 +27,12 @@ class Probes {
   void attach(avr_t* avr, int isr_vector);
   // The board was reset: no interrupt is running any more.
   void on_reset();
+  // A measurement window starts: window_first_pulse_cycle is the first pulse after this.
+  void start_window() { window_any_ = false; }
   // The e-stop input was just asserted (at the current cycle).
   void on_estop_edge();
+  // The e-stop input was released: later pulses belong to new motion, not to the stop.
+  void on_estop_release() { finish_estop_event(); }
   nlohmann::json to_json() const;
   int step_vector() const;
 
@@ -56,6 +60,8 @@ class Probes {
 
   // e-stop: cycles from the input edge to the last STEP pulse after it, worst over edges met while moving.
   uint64_t first_pulse_cycle_ = 0;
+  uint64_t window_first_ = 0;
+  bool window_any_ = false;
   uint64_t last_pulse_cycle_ = 0;
   bool any_pulse_ = false;
   bool estop_open_ = false;        // an edge met while moving, still collecting pulses

@@ -61,7 +61,7 @@ TEST(Vision, GripperTooNarrowIsInfeasible) {
   auto v = Vision::create(o, error);
   ASSERT_TRUE(v);
   nlohmann::json j;
-  ASSERT_TRUE(v->process(render({}, {rectangle({150, 200}, 100, 25, 0), ellipse({420, 220}, 45, 45, 0)}), j, error));
+  ASSERT_TRUE(v->process(render({}, {rectangle({150, 150}, 100, 25, 0), ellipse({420, 300}, 45, 45, 0)}), j, error));
   ASSERT_EQ(j["objects"].size(), 2u);
   EXPECT_TRUE(j["objects"][0]["grip"]["feasible"].get<bool>());   // 2.5 cm
   EXPECT_FALSE(j["objects"][1]["grip"]["feasible"].get<bool>());  // 9 cm

@@ -130,38 +130,38 @@ KEY_INFO = {
 
 # Field layouts: (name, type, count); count 0 is a scalar, n > 0 an array of n.
 REQUEST_FIELDS = {
-    MsgType.HELLO: (('proto_version', 'u8', 0), ),
+    MsgType.HELLO: (('proto_version', 'u8', 0),),
     MsgType.STATUS: (),
     MsgType.HEARTBEAT: (),
-    MsgType.MOVE: (('target', 'i32', 6), ('duration_ms', 'u16', 0), ),
-    MsgType.GRIPPER: (('pulse_us', 'u16', 0), ('dwell_ms', 'u16', 0), ),
-    MsgType.HOME: (('joint_mask', 'u8', 0), ),
+    MsgType.MOVE: (('target', 'i32', 6), ('duration_ms', 'u16', 0)),
+    MsgType.GRIPPER: (('pulse_us', 'u16', 0), ('dwell_ms', 'u16', 0)),
+    MsgType.HOME: (('joint_mask', 'u8', 0),),
     MsgType.STOP: (),
     MsgType.ESTOP: (),
     MsgType.CLEAR_FAULT: (),
-    MsgType.ENABLE: (('enable', 'u8', 0), ),
-    MsgType.SET_POSITION: (('position', 'i32', 6), ),
-    MsgType.CONFIG_GET: (('joint', 'u8', 0), ('key', 'u8', 0), ),
-    MsgType.CONFIG_SET: (('joint', 'u8', 0), ('key', 'u8', 0), ('value', 'i32', 0), ),
+    MsgType.ENABLE: (('enable', 'u8', 0),),
+    MsgType.SET_POSITION: (('position', 'i32', 6),),
+    MsgType.CONFIG_GET: (('joint', 'u8', 0), ('key', 'u8', 0)),
+    MsgType.CONFIG_SET: (('joint', 'u8', 0), ('key', 'u8', 0), ('value', 'i32', 0)),
     MsgType.CONFIG_RESET: (),
 }
 RESPONSE_FIELDS = {
-    MsgType.HELLO: (('status', 'u8', 0), ('proto_version', 'u8', 0), ('fw_major', 'u8', 0), ('fw_minor', 'u8', 0), ('fw_patch', 'u8', 0), ('joints', 'u8', 0), ('queue_size', 'u8', 0), ('capabilities', 'u16', 0), ('last_seq', 'u8', 0), ),
-    MsgType.STATUS: (('status', 'u8', 0), ('state', 'u8', 0), ('faults', 'u16', 0), ('homed', 'u8', 0), ('inputs', 'u8', 0), ('enabled', 'u8', 0), ('queue_free', 'u8', 0), ('moves_done', 'u16', 0), ('gripper_us', 'u16', 0), ('position', 'i32', 6), ),
-    MsgType.HEARTBEAT: (('status', 'u8', 0), ),
-    MsgType.MOVE: (('status', 'u8', 0), ('queue_free', 'u8', 0), ),
-    MsgType.GRIPPER: (('status', 'u8', 0), ('queue_free', 'u8', 0), ),
-    MsgType.HOME: (('status', 'u8', 0), ),
-    MsgType.STOP: (('status', 'u8', 0), ),
-    MsgType.ESTOP: (('status', 'u8', 0), ),
-    MsgType.CLEAR_FAULT: (('status', 'u8', 0), ),
-    MsgType.ENABLE: (('status', 'u8', 0), ),
-    MsgType.SET_POSITION: (('status', 'u8', 0), ),
-    MsgType.CONFIG_GET: (('status', 'u8', 0), ('value', 'i32', 0), ),
-    MsgType.CONFIG_SET: (('status', 'u8', 0), ),
-    MsgType.CONFIG_RESET: (('status', 'u8', 0), ),
+    MsgType.HELLO: (('status', 'u8', 0), ('proto_version', 'u8', 0), ('fw_major', 'u8', 0), ('fw_minor', 'u8', 0), ('fw_patch', 'u8', 0), ('joints', 'u8', 0), ('queue_size', 'u8', 0), ('capabilities', 'u16', 0), ('last_seq', 'u8', 0)),
+    MsgType.STATUS: (('status', 'u8', 0), ('state', 'u8', 0), ('faults', 'u16', 0), ('homed', 'u8', 0), ('inputs', 'u8', 0), ('enabled', 'u8', 0), ('queue_free', 'u8', 0), ('moves_done', 'u16', 0), ('gripper_us', 'u16', 0), ('position', 'i32', 6)),
+    MsgType.HEARTBEAT: (('status', 'u8', 0),),
+    MsgType.MOVE: (('status', 'u8', 0), ('queue_free', 'u8', 0)),
+    MsgType.GRIPPER: (('status', 'u8', 0), ('queue_free', 'u8', 0)),
+    MsgType.HOME: (('status', 'u8', 0),),
+    MsgType.STOP: (('status', 'u8', 0),),
+    MsgType.ESTOP: (('status', 'u8', 0),),
+    MsgType.CLEAR_FAULT: (('status', 'u8', 0),),
+    MsgType.ENABLE: (('status', 'u8', 0),),
+    MsgType.SET_POSITION: (('status', 'u8', 0),),
+    MsgType.CONFIG_GET: (('status', 'u8', 0), ('value', 'i32', 0)),
+    MsgType.CONFIG_SET: (('status', 'u8', 0),),
+    MsgType.CONFIG_RESET: (('status', 'u8', 0),),
 }
-NAK_FIELDS = (('reason', 'u8', 0), )
+NAK_FIELDS = (('reason', 'u8', 0),)
 
 _FMT = {'u8': 'B', 'u16': 'H', 'i32': 'i'}
 

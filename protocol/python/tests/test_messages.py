@@ -88,3 +88,13 @@ def test_lengths_and_codes():
     assert Key.SOFT_MIN == 1 and Key.GRIPPER_MAX_US == 18
     assert messages.KEY_INFO[Key.MAX_SPEED] == (False, 1, 20000, 4000)
     assert messages.KEY_INFO[Key.HEARTBEAT_MS] == (True, 100, 60000, 1000)
+
+
+@pytest.mark.parametrize("v", load_vectors("bad_payloads.json"), ids=lambda v: v["name"])
+def test_bad_payload_vectors(v):
+    (f,) = frame.Decoder().feed(bytes.fromhex(v["wire"]))  # a valid frame...
+    assert f.payload.hex() == v["payload"]
+    unpack = messages.unpack_request if v["kind"] == "request" else messages.unpack_response
+    with pytest.raises(ValueError):  # ...with the wrong payload length for its type
+        unpack(v["msg"], f.payload)
+    assert v["status"] == "BAD_LENGTH"

@@ -154,21 +154,30 @@ def test_watchdog_reset_reboots(sim):
     assert sim.cmd("ping") == "pong"
 
 
+def cpu_seconds(pid):
+    fields = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime + stime
+
+
 def test_paced_to_real_time(sim):
+    t = time.monotonic()
     time.sleep(1.0)
     out = sim.quit()
+    wall = time.monotonic() - t
     seconds = out["cycles"] / 16e6
-    assert 0.8 < seconds < 1.5
+    # Never ahead of the wall clock; behind only when the machine starves it of CPU (then by a bounded debt).
+    assert seconds <= wall + 0.3
+    assert seconds > 0.3
 
 
 def test_fast_runs_ahead_of_real_time(tmp_path):
     s = Sim(tmp_path, "--fast")
     try:
-        t = time.monotonic()
         time.sleep(0.5)
+        cpu = cpu_seconds(s.proc.pid)
         out = s.quit()
-        wall = time.monotonic() - t
-        assert out["cycles"] / 16e6 > 1.2 * wall
+        # Unpaced, each CPU second simulates well over a second (about 3-4 s on this machine's cores).
+        assert out["cycles"] / 16e6 > 1.5 * cpu > 0
     finally:
         if s.proc.poll() is None:
             s.proc.kill()

@@ -85,6 +85,18 @@ class Board:
     def wait_state(self, state, timeout=3.0):
         return self.wait(lambda s: s["state"] == state, timeout, State(state).name)
 
+    def rest(self):
+        """Cleanup after a check, whatever its outcome: motion stopped, faults cleared; raises nothing of its own
+        so the check's own failure is the one reported."""
+        try:
+            self.req(MsgType.STOP)
+            end = time.monotonic() + 5.0
+            while self.status()["state"] not in (State.IDLE, State.FAULT) and time.monotonic() < end:
+                time.sleep(POLL_S)
+            self.req(MsgType.CLEAR_FAULT)
+        except (AssertionError, LinkError):
+            pass
+
     # --- control FIFO (simulators only) -----------------------------------------------------------------------
     def ctl(self, line):
         self.control.write(line + "\n")

@@ -119,7 +119,7 @@ def soft_limits(b):
         s = b.wait_idle()
         expect(s["position"][1] == 500, f"ended at {s['position']}")
     finally:
-        b.wait_idle()
+        b.rest()
         b.set(1, Key.SOFT_MAX, 100000)
 
 
@@ -188,5 +188,5 @@ def homing_with_switch(b):
         expect(s["homed"] & 1, f"joint 1 not marked homed: {brief(s)}")
         expect(abs(s["position"][0] - home) <= 20, f"position {s['position'][0]} after homing, HOME_POSITION {home}")
     finally:
-        b.wait(lambda s: s["state"] != State.HOMING, 3.0, "homing to end")
+        b.rest()
         b.set(0, Key.HOME_POSITION, 0)

@@ -1,7 +1,12 @@
 """baseline.py - a plain OpenCV pipeline measured on the same scenes, as the accuracy benchmark's baseline:
-background difference, Otsu threshold, connected components, binary moments, minAreaRect."""
+background difference, Otsu threshold, connected components; centroid and axis from the binary moments,
+grip opening from minAreaRect's short side."""
+import math
+
 import cv2
 import numpy as np
+
+from .truth import fold_axis_deg
 
 
 def detect(image_bgr, background_bgr, min_area=40):
@@ -17,10 +22,12 @@ def detect(image_bgr, background_bgr, min_area=40):
         x, y, bw, bh, area = stats[k]
         if area < min_area or x == 0 or y == 0 or x + bw >= w or y + bh >= h:
             continue
-        pts = np.column_stack(np.nonzero(labels == k)[::-1]).astype(np.float32)
-        (cx, cy), (rw, rh), ang = cv2.minAreaRect(pts)
-        # minAreaRect's angle belongs to its width side; the long side is the object's axis.
-        axis = ang if rw >= rh else ang + 90.0
-        out.append({"centroid_px": [float(cents[k][0]), float(cents[k][1])], "orientation_deg": float(axis),
+        comp = (labels[y:y + bh, x:x + bw] == k).astype(np.uint8)
+        m = cv2.moments(comp, binaryImage=True)
+        axis = fold_axis_deg(math.degrees(0.5 * math.atan2(2 * m["mu11"], m["mu20"] - m["mu02"])))
+        pts = np.column_stack(np.nonzero(comp)[::-1]).astype(np.float32)
+        (_, _), (rw, rh), _ = cv2.minAreaRect(pts)
+        # Pixel centres span one pixel less than the object: add it back.
+        out.append({"centroid_px": [float(cents[k][0]), float(cents[k][1])], "orientation_deg": axis,
                     "grip": {"opening_px": float(min(rw, rh) + 1.0)}, "label": None})
     return out

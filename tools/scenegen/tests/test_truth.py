@@ -18,7 +18,6 @@ def test_rectangle_opening_is_its_short_side(angle):
     g = truth.grip_chord(poly)
     assert g["opening"] == pytest.approx(30.0, abs=1e-6)
     # The fingers close across the long axis.
-    assert truth.axis_error_deg(g["angle_deg"], angle + 90) < 0.01 if hasattr(truth, "axis_error_deg") else True
     assert abs(truth.fold_axis_deg(g["angle_deg"] - (angle + 90))) < 0.01
     p1, p2 = np.array(g["p1"]), np.array(g["p2"])
     assert np.linalg.norm(p2 - p1) == pytest.approx(30.0, abs=1e-6)
@@ -101,7 +100,7 @@ def test_boundary_moments_match_dense_edge_points():
     assert (v[:, 1] ** 2).sum() * step == pytest.approx(syy, rel=1e-4)
 
 
-def brute_force_opening(poly, centre, n=36000):
+def brute_force_opening(poly, centre, n=6000):
     """Independent: rotate the polygon so each line is the x axis and intersect the edges with y = 0."""
     best = math.inf
     for k in range(n):
@@ -122,7 +121,9 @@ def brute_force_opening(poly, centre, n=36000):
 def test_grip_opening_matches_brute_force(name):
     poly = shapes.place(shapes.polygon_cm(name), 40, 12.5, (0, 0))
     g = truth.grip_chord(poly)
-    assert g["opening"] == pytest.approx(brute_force_opening(poly, truth.area_centroid(poly)), abs=0.02)
+    assert g["opening"] == pytest.approx(brute_force_opening(poly, truth.area_centroid(poly)), abs=0.05)
+    # The truth is a minimum: never above the brute force's best sampled chord.
+    assert g["opening"] <= brute_force_opening(poly, truth.area_centroid(poly), n=600) + 1e-9
 
 
 def test_grip_of_the_ellipse_is_its_minor_axis():

@@ -1,0 +1,137 @@
+// test_link.cpp - the link: duplicates answered from the cache and not re-executed, garbage and corrupt frames
+// NAKed (or ignored) with nothing executed, resynchronisation, HELLO.
+#include <vector>
+
+#include "fw_fixture.hpp"
+
+namespace rbx1::fwtest {
+namespace {
+
+std::vector<uint8_t> move_payload(std::vector<int32_t> target, uint16_t duration_ms = 0) {
+  rbx1_move_req q{};
+  for (int i = 0; i < 6; i++) q.target[i] = target[i];
+  q.duration_ms = duration_ms;
+  std::vector<uint8_t> p(RBX1_MOVE_REQ_LEN);
+  rbx1_move_req_pack(&q, p.data());
+  return p;
+}
+
+TEST_F(Fw, HelloReportsVersionsSizesAndCapabilities) {
+  uint8_t p[1] = {RBX1_PROTO_VERSION};
+  Reply r = request(RBX1_MSG_HELLO, p, 1);
+  ASSERT_TRUE(r.got);
+  EXPECT_EQ(r.type, RBX1_RESPONSE(RBX1_MSG_HELLO));
+  rbx1_hello_resp h{};
+  ASSERT_EQ(rbx1_hello_resp_unpack(&h, r.payload.data(), (uint8_t)r.payload.size()), RBX1_OK);
+  EXPECT_EQ(h.status, RBX1_OK);
+  EXPECT_EQ(h.joints, 6);
+  EXPECT_EQ(h.queue_size, 16);
+  EXPECT_EQ(h.last_seq, 0xFF);  // nothing executed since power-up
+  EXPECT_EQ(h.capabilities & RBX1_CAP_SIMULATED, RBX1_CAP_SIMULATED);
+  EXPECT_EQ(simple(RBX1_MSG_HEARTBEAT), RBX1_OK);  // seq 1
+  r = request(RBX1_MSG_HELLO, p, 1);                // seq 2
+  ASSERT_EQ(rbx1_hello_resp_unpack(&h, r.payload.data(), (uint8_t)r.payload.size()), RBX1_OK);
+  EXPECT_EQ(h.last_seq, 1);
+  p[0] = 2;
+  r = request(RBX1_MSG_HELLO, p, 1);
+  ASSERT_EQ(rbx1_hello_resp_unpack(&h, r.payload.data(), (uint8_t)r.payload.size()), RBX1_OK);
+  EXPECT_EQ(h.status, RBX1_BAD_VERSION);
+  EXPECT_EQ(h.proto_version, RBX1_PROTO_VERSION);
+}
+
+TEST_F(Fw, DuplicateMoveIsAnsweredAgainButExecutedOnce) {
+  ready();
+  std::vector<uint8_t> p = move_payload({500, 0, 0, 0, 0, 0});
+  std::vector<uint8_t> f = encode(42, RBX1_MSG_MOVE, p.data(), (uint8_t)p.size());
+  Reply a = exchange(f);
+  Reply b = exchange(f);
+  ASSERT_TRUE(a.got);
+  ASSERT_TRUE(b.got);
+  EXPECT_EQ(a.seq, 42);
+  EXPECT_EQ(b.seq, 42);
+  EXPECT_EQ(a.payload, b.payload);
+  EXPECT_EQ(status().queue_free, 15);
+  run_until_idle();
+  EXPECT_EQ(status().moves_done, 1);
+  // Same SEQ, other content: a new request.
+  std::vector<uint8_t> p2 = move_payload({0, 0, 0, 0, 0, 0});
+  Reply c = exchange(encode(42, RBX1_MSG_MOVE, p2.data(), (uint8_t)p2.size()));
+  EXPECT_EQ(c.payload[0], RBX1_OK);
+  run_until_idle();
+  EXPECT_EQ(status().moves_done, 2);
+  EXPECT_EQ(sim::board().pulses[0], 1000u);
+}
+
+TEST_F(Fw, CorruptFrameIsNakedAndNotExecuted) {
+  ready();
+  std::vector<uint8_t> p = move_payload({500, 0, 0, 0, 0, 0});
+  std::vector<uint8_t> f = encode(7, RBX1_MSG_MOVE, p.data(), (uint8_t)p.size());
+  f[6] ^= 0x10;  // a payload bit
+  Reply r = exchange(f);
+  ASSERT_TRUE(r.got);
+  EXPECT_EQ(r.type, RBX1_MSG_NAK);
+  EXPECT_EQ(r.seq, 7);
+  ASSERT_EQ(r.payload.size(), 1u);
+  EXPECT_EQ(r.payload[0], RBX1_BAD_CRC);
+  run_ms(50);
+  rbx1_status_resp s = status();
+  EXPECT_EQ(s.queue_free, 16);
+  EXPECT_EQ(s.moves_done, 0);
+  EXPECT_EQ(sim::board().pulses[0], 0u);
+}
+
+TEST_F(Fw, GarbageIsIgnoredAndAFrameInsideItIsFound) {
+  ready();
+  std::vector<uint8_t> junk = {0x00, 0x13, 0xFF, 0x42, 0x99, 0x10, 0x20};
+  frames_.clear();
+  send_bytes(junk.data(), junk.size());
+  run_ms(5);
+  EXPECT_TRUE(frames_.empty()) << "no SYNC, no header: silence";
+  // A bad LEN after SYNC is NAKed (BAD_LENGTH), then the real frame behind it is executed.
+  std::vector<uint8_t> p = move_payload({0, 300, 0, 0, 0, 0});
+  std::vector<uint8_t> f = {RBX1_SYNC, 200, 9};
+  std::vector<uint8_t> good = encode(9, RBX1_MSG_MOVE, p.data(), (uint8_t)p.size());
+  f.insert(f.end(), good.begin(), good.end());
+  frames_.clear();
+  send_bytes(f.data(), f.size());
+  run_ms(5);
+  ASSERT_EQ(frames_.size(), 2u);
+  EXPECT_EQ(frames_[0].type, RBX1_MSG_NAK);
+  EXPECT_EQ(frames_[0].payload[0], RBX1_BAD_LENGTH);
+  EXPECT_EQ(frames_[1].type, RBX1_RESPONSE(RBX1_MSG_MOVE));
+  EXPECT_EQ(frames_[1].payload[0], RBX1_OK);
+  run_until_idle();
+  EXPECT_EQ(status().position[1], 300);
+}
+
+TEST_F(Fw, UnknownTypeAndWrongLengthAreNaked) {
+  ready();
+  Reply r = request(0x55, nullptr, 0);
+  ASSERT_TRUE(r.got);
+  EXPECT_EQ(r.type, RBX1_MSG_NAK);
+  EXPECT_EQ(r.payload[0], RBX1_UNKNOWN_TYPE);
+  std::vector<uint8_t> p = move_payload({100, 0, 0, 0, 0, 0});
+  r = request(RBX1_MSG_MOVE, p.data(), (uint8_t)(p.size() - 1));
+  ASSERT_TRUE(r.got);
+  EXPECT_EQ(r.type, RBX1_MSG_NAK);
+  EXPECT_EQ(r.payload[0], RBX1_BAD_LENGTH);
+  run_ms(20);
+  EXPECT_EQ(status().queue_free, 16);
+  EXPECT_EQ(sim::board().pulses[0], 0u);
+}
+
+TEST_F(Fw, PartialFrameTimesOut) {
+  ready();
+  std::vector<uint8_t> p = move_payload({100, 0, 0, 0, 0, 0});
+  std::vector<uint8_t> f = encode(3, RBX1_MSG_MOVE, p.data(), (uint8_t)p.size());
+  frames_.clear();
+  send_bytes(f.data(), 10);  // then the line goes quiet for more than 50 ms
+  run_ms(80);
+  EXPECT_TRUE(frames_.empty());
+  Reply r = request(RBX1_MSG_HEARTBEAT, nullptr, 0);  // a fresh frame is understood at once
+  ASSERT_TRUE(r.got);
+  EXPECT_EQ(r.type, RBX1_RESPONSE(RBX1_MSG_HEARTBEAT));
+}
+
+}  // namespace
+}  // namespace rbx1::fwtest

@@ -1,0 +1,168 @@
+// test_motion.cpp - coordinated moves (exact steps, common start and finish), trapezoid limits, duration, queue.
+#include <array>
+#include <cmath>
+#include <vector>
+
+#include "fw_fixture.hpp"
+
+namespace rbx1::fwtest {
+namespace {
+
+struct StepTrace {
+  std::array<std::vector<uint64_t>, 6> t;  // tick of every pulse per joint
+  std::vector<uint64_t> isr;              // tick of every pulse-bearing ISR
+  void attach() {
+    sim::board().on_step = [this](uint8_t mask, uint64_t now) {
+      isr.push_back(now);
+      for (int i = 0; i < 6; i++)
+        if (mask & (1u << i)) t[i].push_back(now);
+    };
+  }
+};
+
+TEST_F(Fw, CoordinatedMoveEndsAtExactTargetsTogether) {
+  ready();
+  StepTrace tr;
+  tr.attach();
+  std::vector<int32_t> target = {1000, -2000, 300, 4000, 7, -1};
+  ASSERT_EQ(move(target), RBX1_OK);
+  run_until_idle();
+  rbx1_status_resp s = status();
+  EXPECT_EQ(s.state, RBX1_STATE_IDLE);
+  EXPECT_EQ(s.moves_done, 1);
+  uint32_t n = 4000;  // dominant joint: J4
+  ASSERT_EQ(tr.t[3].size(), n);
+  for (int i = 0; i < 6; i++) {
+    EXPECT_EQ(s.position[i], target[i]) << "joint " << i + 1;
+    EXPECT_EQ(sim::board().net[i], target[i]) << "joint " << i + 1;  // pulses and DIR as the drivers see them
+    EXPECT_EQ(sim::board().pulses[i], (uint64_t)std::abs(target[i])) << "no back and forth";
+    uint32_t ni = (uint32_t)std::abs(target[i]);
+    ASSERT_EQ(tr.t[i].size(), ni);
+    // Bresenham: the k-th step of joint i comes on dominant tick ceil(k*n/ni): evenly spread, exact.
+    for (uint32_t k = 1; k <= ni; k++) {
+      uint64_t tick = ((uint64_t)k * n + ni - 1) / ni;
+      ASSERT_EQ(tr.t[i][k - 1], tr.t[3][tick - 1]) << "joint " << i + 1 << " step " << k;
+    }
+    // Every joint's last pulse is on the same ISR tick as the dominant joint's.
+    EXPECT_EQ(tr.t[i].back(), tr.t[3].back()) << "joint " << i + 1;
+  }
+  // The block starts every joint on its first dominant tick window (k = 1 above: tick ceil(n/ni)) and finishes
+  // them all on the dominant joint's last tick: together within one ISR tick.
+}
+
+TEST_F(Fw, ConsecutiveMovesAndGripperComplete) {
+  ready();
+  std::vector<std::array<int32_t, 6>> done;
+  sim::board().on_entry_done = [&](uint8_t kind, uint16_t, const int32_t*, const int32_t*, const int32_t* end,
+                                   uint16_t, uint16_t) {
+    if (kind == 0) done.push_back({end[0], end[1], end[2], end[3], end[4], end[5]});
+  };
+  ASSERT_EQ(move({100, 200, 300, 400, 500, 600}), RBX1_OK);
+  ASSERT_EQ(gripper(1500, 50), RBX1_OK);
+  ASSERT_EQ(move({-100, 0, 300, 0, 0, -600}), RBX1_OK);
+  run_until_idle();
+  rbx1_status_resp s = status();
+  EXPECT_EQ(s.moves_done, 3);
+  EXPECT_EQ(s.gripper_us, 1500);
+  EXPECT_EQ(sim::board().servo_us, 1500);
+  ASSERT_EQ(done.size(), 2u);
+  EXPECT_EQ(done[0], (std::array<int32_t, 6>{100, 200, 300, 400, 500, 600}));
+  EXPECT_EQ(done[1], (std::array<int32_t, 6>{-100, 0, 300, 0, 0, -600}));
+  for (int i = 0; i < 6; i++) EXPECT_EQ(sim::board().net[i], s.position[i]);
+}
+
+// Rates between pulses: 2 MHz ticks -> steps/s.
+std::vector<double> rates(const std::vector<uint64_t>& t) {
+  std::vector<double> r;
+  for (size_t k = 1; k < t.size(); k++) r.push_back(2e6 / (double)(t[k] - t[k - 1]));
+  return r;
+}
+
+TEST_F(Fw, TrapezoidStaysWithinMaxSpeedAndAccel) {
+  ready();
+  const double vmax = 3000, acc = 6000;
+  ASSERT_EQ(config_set(0, RBX1_KEY_MAX_SPEED, (int32_t)vmax), RBX1_OK);
+  ASSERT_EQ(config_set(0, RBX1_KEY_ACCEL, (int32_t)acc), RBX1_OK);
+  StepTrace tr;
+  tr.attach();
+  ASSERT_EQ(move({15000, 0, 0, 0, 0, 0}), RBX1_OK);
+  run_until_idle();
+  ASSERT_EQ(tr.t[0].size(), 15000u);
+  std::vector<double> r = rates(tr.t[0]);
+  double peak = 0;
+  const double v0 = std::sqrt(acc / 2);  // the planned start/stop rate: first step 1/v0 after the start
+  const double t0 = (double)tr.t[0].front() / 2e6 - 1 / v0, t1 = (double)tr.t[0].back() / 2e6;
+  const double slack = acc / 1000.0;  // the rate changes once per 1 ms profile tick, by up to acc * 1 ms
+  for (size_t k = 0; k < r.size(); k++) {
+    double ta = (double)tr.t[0][k] / 2e6;  // the interval's start
+    peak = std::max(peak, r[k]);
+    ASSERT_LE(r[k], vmax * 1.01) << "step " << k;
+    // Up from v0 at the start no faster than acc.
+    ASSERT_LE(r[k], (v0 + acc * (ta - t0)) * 1.005 + slack) << "step " << k;
+    // Step to step, the rate changes by at most acc over the time between them (plus one tick's change).
+    if (k + 1 < r.size()) {
+      double dt = (double)(tr.t[0][k + 2] - tr.t[0][k]) / 2e6;
+      ASSERT_LE(std::fabs(r[k + 1] - r[k]), acc * dt * 1.01 + slack + 1) << "step " << k;
+    }
+  }
+  // It ends near rest (the start/stop rate), not from speed.
+  EXPECT_LE(r.back(), v0 * 1.01 + 2 * slack);
+  (void)t1;
+  EXPECT_GE(peak, vmax * 0.97);  // and it does reach the cruise speed
+  // Time of the ideal trapezoid: n/v + v/a = 5.5 s.
+  EXPECT_NEAR(t1 - t0, 15000 / vmax + vmax / acc, 0.1);
+}
+
+TEST_F(Fw, SlowJointLimitsTheDominantJoint) {
+  ready();
+  ASSERT_EQ(config_set(1, RBX1_KEY_MAX_SPEED, 1000), RBX1_OK);  // J2 moves half as far but is slow
+  StepTrace tr;
+  tr.attach();
+  ASSERT_EQ(move({10000, 5000, 0, 0, 0, 0}), RBX1_OK);
+  run_until_idle();
+  ASSERT_EQ(tr.t[1].size(), 5000u);
+  // J2's rate averaged over 20 of its steps never exceeds its own 1000 steps/s.
+  for (size_t k = 20; k < tr.t[1].size(); k++)
+    ASSERT_LE(20 * 2e6 / (double)(tr.t[1][k] - tr.t[1][k - 20]), 1000 * 1.01) << "J2 step " << k;
+}
+
+TEST_F(Fw, MoveIsNotShorterThanDuration) {
+  ready();
+  StepTrace tr;
+  tr.attach();
+  uint64_t t_start = sim::board().now;
+  ASSERT_EQ(move({200, 100, 0, 0, 0, 0}, 1500), RBX1_OK);
+  uint32_t ms = run_until_idle();
+  EXPECT_GE((double)(tr.t[0].back() - t_start) / 2000.0, 1500 * 0.9);  // the profile is stretched, not padded
+  EXPECT_GE(ms, 1500u);
+  EXPECT_LE(ms, 1600u);
+  EXPECT_EQ(status().moves_done, 1);
+}
+
+TEST_F(Fw, QueueFullIsRefused) {
+  ready();
+  uint8_t free_slots = 0;
+  for (int i = 0; i < 16; i++) {
+    ASSERT_EQ(gripper(1000 + 10 * i, 1000, &free_slots), RBX1_OK) << i;
+    EXPECT_EQ(free_slots, 15 - i);
+  }
+  EXPECT_EQ(gripper(1200, 10, &free_slots), RBX1_QUEUE_FULL);
+  EXPECT_EQ(free_slots, 0);
+  EXPECT_EQ(move({10, 0, 0, 0, 0, 0}, 0, &free_slots), RBX1_QUEUE_FULL);
+  run_ms(1100, true);  // the first entry completes: room for one
+  EXPECT_EQ(status().moves_done, 1);
+  EXPECT_EQ(move({10, 0, 0, 0, 0, 0}, 0, &free_slots), RBX1_OK);
+  EXPECT_EQ(free_slots, 0);
+}
+
+TEST_F(Fw, GripperPulseOutsideLimitsIsBadArg) {
+  ready();
+  EXPECT_EQ(gripper(999, 0), RBX1_BAD_ARG);
+  EXPECT_EQ(gripper(2001, 0), RBX1_BAD_ARG);
+  EXPECT_EQ(gripper(2000, 0), RBX1_OK);
+  run_ms(5);
+  EXPECT_EQ(sim::board().servo_us, 2000);
+}
+
+}  // namespace
+}  // namespace rbx1::fwtest

@@ -1,0 +1,30 @@
+// frame_source.hpp - where frames come from: a V4L2 camera, an image file, or a folder of images.
+#pragma once
+#include <memory>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "config.hpp"
+
+namespace rbx1::camera {
+
+struct CameraConfig {
+  std::string device;  // /dev/videoN, an image file, or a folder of images
+  int width = 1280, height = 720, fps = 30;
+  std::string format = "YUYV";  // YUYV or MJPEG (V4L2 only)
+};
+void parse_camera_config(rbx1::config::Section camera, CameraConfig& out);  // the [camera] table
+
+class FrameSource {
+ public:
+  virtual ~FrameSource() = default;
+  virtual int read(cv::Mat& bgr) = 0;  // 0 or a negative errno
+  virtual std::string describe() const = 0;
+};
+
+// "/dev/videoN" (any character device) -> V4L2 mmap streaming (YUYV or MJPEG); an image file -> that image on
+// every read; a folder -> its images in name order, cycling. null + error "PATH: reason" when it cannot be opened.
+std::unique_ptr<FrameSource> open_source(const CameraConfig&, std::string& error);
+
+}  // namespace rbx1::camera
