@@ -20,7 +20,7 @@ struct Reply {
 };
 
 class Fw : public ::testing::Test {
- protected:
+ public:  // helpers are public so that free check functions can drive a test's firmware
   void SetUp() override {
     sim::board() = sim::Board{};
     sim::erase_eeprom();

@@ -91,6 +91,10 @@ ToolPose tool_pose(const Links& links, const Joints& q) {
 bool check_limits(const ArmConfig& cfg, const Joints& q, std::string& error) {
   for (int j = 0; j < kJoints; ++j) {
     const JointConfig& jc = cfg.joints[j];
+    if (!std::isfinite(q[j])) {
+      error = "J" + std::to_string(j + 1) + " (" + joint_name(j) + ") has no finite angle";
+      return false;
+    }
     bool low = q[j] < jc.min_deg - kLimitSlack, high = q[j] > jc.max_deg + kLimitSlack;
     if (!low && !high) continue;
     std::string key = std::string(low ? "min_deg" : "max_deg");
@@ -105,6 +109,10 @@ bool check_limits(const ArmConfig& cfg, const Joints& q, std::string& error) {
 bool ik_solutions(const ArmConfig& cfg, const Grasp& g, const Joints& current, std::vector<IkSolution>& out,
                   std::string& error) {
   out.clear();
+  if (!std::isfinite(g.x_mm) || !std::isfinite(g.y_mm) || !std::isfinite(g.z_mm) || !std::isfinite(g.yaw_deg)) {
+    error = "target has a coordinate or yaw that is not a finite number";
+    return false;
+  }
   const Links& l = cfg.links;
   const double l2 = l.upper_arm_mm, l3 = l.forearm_mm;
   // Top-down: the wrist-pitch axis sits tool_mm straight above the tool point, in the vertical plane of J1.

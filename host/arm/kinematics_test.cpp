@@ -248,6 +248,17 @@ TEST(Kinematics, OutOfReach) {
             "the arm reaches 436.0 mm");
 }
 
+TEST(Kinematics, NonFiniteInputsAreRejected) {
+  const ArmConfig c;
+  Joints q;
+  std::string error;
+  EXPECT_FALSE(ik(c, Grasp{NAN, 0, 0, 0}, c.home, q, error));
+  EXPECT_EQ(error, "target has a coordinate or yaw that is not a finite number");
+  EXPECT_FALSE(ik(c, Grasp{300, 0, 0, INFINITY}, c.home, q, error));
+  EXPECT_FALSE(check_limits(c, Joints{0, 0, NAN, 0, 0, 0}, error));
+  EXPECT_EQ(error, "J3 (elbow) has no finite angle");
+}
+
 TEST(Kinematics, Normalisation) {
   EXPECT_DOUBLE_EQ(normalize_deg(180), 180);
   EXPECT_DOUBLE_EQ(normalize_deg(-180), 180);

@@ -48,8 +48,9 @@ Steps home_steps(const ArmConfig& cfg) { return joints_to_steps(cfg, cfg.home); 
 Steps scan_steps(const ArmConfig& cfg) { return joints_to_steps(cfg, cfg.scan); }
 
 bool gripper_pulse_us(const GripperConfig& g, double opening_mm, uint16_t& pulse_us, std::string& error) {
-  if (!(opening_mm >= 0.0)) {
-    error = "gripper opening " + mm(opening_mm) + " mm is negative";
+  if (!std::isfinite(opening_mm) || opening_mm < 0.0) {
+    error = std::isfinite(opening_mm) ? "gripper opening " + mm(opening_mm) + " mm is negative"
+                                      : "gripper opening is not a finite number";
     return false;
   }
   if (opening_mm > g.max_opening_mm + 1e-9) {
@@ -103,8 +104,9 @@ bool plan_pick(const ArmConfig& cfg, const Steps& current, const PickObject& obj
     return false;
   }
   const Place& place = place_it->second;
-  if (!(obj.height_mm >= 0.0)) {
-    error = "object height " + mm(obj.height_mm) + " mm is negative";
+  if (!std::isfinite(obj.height_mm) || obj.height_mm < 0.0) {
+    error = std::isfinite(obj.height_mm) ? "object height " + mm(obj.height_mm) + " mm is negative"
+                                         : "object height is not a finite number";
     return false;
   }
   uint16_t open_us = 0, closed_us = 0;

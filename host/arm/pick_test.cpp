@@ -176,6 +176,15 @@ TEST(Pick, Errors) {
   far.places["tray"] = Place{0, 600, 0, 0};
   EXPECT_FALSE(plan_pick(far, home_steps(c), PickObject{280, 0, 0, 10, 10}, "tray", w, error));
   EXPECT_EQ(error.rfind("carry: ", 0), 0u) << error;
+  // Not a number (say, from a detection without table coordinates) never reaches the steps.
+  EXPECT_FALSE(plan_pick(c, home_steps(c), PickObject{NAN, 0, 0, 10, 10}, "tray", w, error));
+  EXPECT_EQ(error, "approach: target has a coordinate or yaw that is not a finite number");
+  EXPECT_FALSE(plan_pick(c, home_steps(c), PickObject{280, 0, 0, NAN, 10}, "tray", w, error));
+  EXPECT_EQ(error, "gripper opening is not a finite number");
+  EXPECT_FALSE(plan_pick(c, home_steps(c), PickObject{280, 0, 0, 10, NAN}, "tray", w, error));
+  EXPECT_EQ(error, "object height is not a finite number");
+  EXPECT_FALSE(plan_pick(c, home_steps(c), PickObject{280, 0, 0, 10, -3}, "tray", w, error));
+  EXPECT_EQ(error, "object height -3.0 mm is negative");
   // Out of joint limits names the joint.
   ArmConfig tight = c;
   tight.joints[0].min_deg = -10;

@@ -37,7 +37,7 @@ void print_event(const nlohmann::json& ev) {
   double t = ev.value("t_ms", 0.0) / 1000.0;
   std::string line;
   for (const auto& [k, v] : ev.items()) {
-    if (k == "ts" || k == "t_ms" || k == "event" || k == "detections") continue;
+    if (k == "ts" || k == "t_ms" || k == "event" || k == "detections" || k == "report" || k == "mono_ns") continue;
     line += "  " + k + "=" + compact(v);
   }
   std::printf("%8.3f s  %-14s%s\n", t, ev.value("event", "?").c_str(), line.c_str());
@@ -46,9 +46,8 @@ void print_event(const nlohmann::json& ev) {
   std::fflush(stdout);
 }
 
+// The final result as "key: value" lines (the report was printed with its event).
 void print_result(const nlohmann::json& result) {
-  if (result.is_object() && result.contains("report") && result["report"].is_string())
-    std::fputs(result["report"].get<std::string>().c_str(), stdout);
   if (result.is_object()) {
     for (const auto& [k, v] : result.items()) {
       if (k == "report" || k == "detections") continue;

@@ -28,6 +28,7 @@ void parse_link_config(rbx1::config::Section link, LinkConfig& out) {
   out.timeout_ms = static_cast<int>(link.integer("timeout_ms", out.timeout_ms, 10, 5000));
   out.retries = static_cast<int>(link.integer("retries", out.retries, 0, 20));
   out.heartbeat_ms = static_cast<int>(link.integer("heartbeat_ms", out.heartbeat_ms, 20, 30000));
+  out.boot_wait_ms = static_cast<int>(link.integer("boot_wait_ms", out.boot_wait_ms, 0, 10000));
   link.reject_unknown();
 }
 
@@ -47,6 +48,7 @@ void Link::set_timing(int timeout_ms, int retries) {
 
 int Link::open(const LinkConfig& config, std::string& error) {
   set_timing(config.timeout_ms, config.retries);
+  set_boot_wait(config.boot_wait_ms);
   return open(config.port, config.baud, error);
 }
 
@@ -91,7 +93,12 @@ int Link::attach(int fd, std::string& error) {
 
 int Link::handshake(std::string& error) {
   rbx1_hello_resp h{};
+  auto deadline = Clock::now() + std::chrono::milliseconds(boot_wait_ms_.load());
   int r = hello(h);
+  while (r == -ETIMEDOUT && Clock::now() < deadline) {
+    spdlog::info("{}: no HELLO answer yet; waiting for the board to boot", name_);
+    r = hello(h);
+  }
   if (r == -EPROTO) {
     error = name_ + ": firmware speaks protocol version " + std::to_string(h.proto_version) + ", this host " +
             std::to_string(RBX1_PROTO_VERSION) + "; flash the matching firmware";
@@ -517,6 +524,11 @@ LinkStats Link::stats() const {
   s.bytes_sent = counters_.bytes_sent;
   s.bytes_received = counters_.bytes_received;
   return s;
+}
+
+rbx1_hello_resp Link::firmware() const {
+  std::lock_guard<std::mutex> lock(state_mu_);
+  return hello_;
 }
 
 uint8_t Link::next_seq() const {

@@ -21,6 +21,7 @@ struct LinkConfig {
   int timeout_ms = 100;    // per transmission (PROTOCOL.md: 100 ms)
   int retries = 5;         // retransmissions before the link is declared down (PROTOCOL.md: 5)
   int heartbeat_ms = 250;  // idle interval between HEARTBEATs; must stay below the firmware's HEARTBEAT_MS
+  int boot_wait_ms = 2500; // keep trying HELLO this long at open: the first open after plug-in resets an Arduino
 };
 void parse_link_config(rbx1::config::Section link, LinkConfig& out);
 
@@ -68,6 +69,8 @@ class Link {
 
   // Per-transmission timeout and retransmission count (defaults from PROTOCOL.md).
   void set_timing(int timeout_ms, int retries);
+  // How long open()/reconnect() keep repeating an unanswered HELLO (a board in its bootloader). Default 2500.
+  void set_boot_wait(int ms) { boot_wait_ms_ = ms; }
 
   // Any request by type with a raw payload; resp receives the response payload (status first).
   int request(uint8_t type, const uint8_t* payload, uint8_t len, uint8_t* resp, uint8_t& resp_len);
@@ -99,7 +102,7 @@ class Link {
   void start_heartbeat(int period_ms);
   void stop_heartbeat();
 
-  const rbx1_hello_resp& firmware() const { return hello_; }  // the last HELLO response
+  rbx1_hello_resp firmware() const;  // the last successful HELLO response
   LinkStats stats() const;
   uint8_t next_seq() const;
 
@@ -128,7 +131,7 @@ class Link {
 
   std::string path_, name_;
   int baud_ = 0;  // 0 when opened with open_fd (no termios, no reopen)
-  std::atomic<int> timeout_ms_{100}, retries_{5};
+  std::atomic<int> timeout_ms_{100}, retries_{5}, boot_wait_ms_{2500};
 
   std::mutex request_mu_;  // one request outstanding at a time
   std::mutex estop_mu_;    // one e-stop exchange at a time

@@ -21,11 +21,11 @@ int64_t ms_since(steady_clock::time_point t0) {
   return duration_cast<milliseconds>(steady_clock::now() - t0).count();
 }
 
-// All frames the peer received with this SEQ.
+// All frames after the handshake the peer received with this SEQ (the HELLO's SEQ is random).
 std::vector<FakePeer::Received> with_seq(const FakePeer& peer, uint8_t seq) {
   std::vector<FakePeer::Received> out;
   for (const auto& r : peer.received())
-    if (r.seq == seq) out.push_back(r);
+    if (r.seq == seq && r.type != RBX1_MSG_HELLO) out.push_back(r);
   return out;
 }
 
@@ -36,12 +36,29 @@ rbx1_move_req some_move(int32_t base) {
   return m;
 }
 
+// The timeout is 400 ms unless a test is about the timeout itself, so a loaded machine (2 cores shared by
+// parallel builds and tests) cannot add retransmissions the test did not cause.
 struct LinkTest : ::testing::Test {
   FakePeer peer;
   Link link;
+  rbx1::link::LinkStats base;
   void SetUp() override {
     std::string error;
+    link.set_timing(400, 5);
     ASSERT_EQ(link.open(peer.slave_path(), 115200, error), 0) << error;
+    base = link.stats();
+  }
+  // Counters since SetUp (the handshake excluded).
+  rbx1::link::LinkStats delta() const {
+    rbx1::link::LinkStats s = link.stats();
+    s.requests -= base.requests;
+    s.retransmissions -= base.retransmissions;
+    s.timeouts -= base.timeouts;
+    s.naks -= base.naks;
+    s.stale -= base.stale;
+    s.rejected -= base.rejected;
+    s.link_down -= base.link_down;
+    return s;
   }
 };
 
@@ -56,7 +73,7 @@ TEST_F(LinkTest, HelloContinuesFromLastSeq) {
   EXPECT_EQ(s.status, RBX1_OK);
   EXPECT_EQ(s.position[5], 2500);
   EXPECT_EQ(peer.received().back().seq, 42);
-  EXPECT_EQ(link.stats().retransmissions, 0u);
+  EXPECT_EQ(delta().retransmissions, 0u);
 }
 
 TEST_F(LinkTest, EveryTypedHelperGetsItsResponse) {
@@ -90,7 +107,7 @@ TEST_F(LinkTest, EveryTypedHelperGetsItsResponse) {
   ASSERT_EQ(link.status(s), 0);
   EXPECT_EQ(s.moves_done, 2);
   for (uint8_t t = RBX1_MSG_HELLO; t <= RBX1_MSG_CONFIG_RESET; ++t) EXPECT_GE(peer.executed(t), 1) << int(t);
-  EXPECT_EQ(link.stats().requests, 14u);  // HELLO + 13 above
+  EXPECT_EQ(delta().requests, 13u);
 }
 
 TEST_F(LinkTest, RetransmitsTheSameBytesOnSilence) {
@@ -100,15 +117,15 @@ TEST_F(LinkTest, RetransmitsTheSameBytesOnSilence) {
   rbx1_move_resp r{};
   ASSERT_EQ(link.move(some_move(5), r), 0);
   int64_t took = ms_since(t0);
-  EXPECT_GE(took, 190);  // two 100 ms timeouts
-  EXPECT_LT(took, 400);
+  EXPECT_GE(took, 790);  // two 400 ms timeouts
+  EXPECT_LT(took, 2000);
   auto frames = with_seq(peer, seq);
   ASSERT_EQ(frames.size(), 3u);
   EXPECT_EQ(frames[0].crc, frames[1].crc);
   EXPECT_EQ(frames[0].crc, frames[2].crc);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 1);
-  EXPECT_EQ(link.stats().retransmissions, 2u);
-  EXPECT_EQ(link.stats().timeouts, 2u);
+  EXPECT_EQ(delta().retransmissions, 2u);
+  EXPECT_EQ(delta().timeouts, 2u);
 }
 
 TEST_F(LinkTest, RetransmitsAtOnceOnNak) {
@@ -117,12 +134,12 @@ TEST_F(LinkTest, RetransmitsAtOnceOnNak) {
   auto t0 = steady_clock::now();
   rbx1_move_resp r{};
   ASSERT_EQ(link.move(some_move(7), r), 0);
-  EXPECT_LT(ms_since(t0), 90);  // no timeout waited
+  EXPECT_LT(ms_since(t0), 300);  // no timeout waited (timeouts counted below; loose for a loaded machine)
   EXPECT_EQ(with_seq(peer, seq).size(), 4u);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 1);
-  EXPECT_EQ(link.stats().naks, 3u);
-  EXPECT_EQ(link.stats().retransmissions, 3u);
-  EXPECT_EQ(link.stats().timeouts, 0u);
+  EXPECT_EQ(delta().naks, 3u);
+  EXPECT_EQ(delta().retransmissions, 3u);
+  EXPECT_EQ(delta().timeouts, 0u);
 }
 
 TEST_F(LinkTest, CorruptResponseIsRetransmittedNotReExecuted) {
@@ -132,8 +149,8 @@ TEST_F(LinkTest, CorruptResponseIsRetransmittedNotReExecuted) {
   EXPECT_EQ(r.queue_free, 7);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 1);
   EXPECT_EQ(peer.cached_replies(), 1);
-  EXPECT_EQ(link.stats().retransmissions, 1u);
-  EXPECT_GE(link.stats().rejected, 1u);
+  EXPECT_EQ(delta().retransmissions, 1u);
+  EXPECT_GE(delta().rejected, 1u);
   rbx1_status_resp s{};
   ASSERT_EQ(link.status(s), 0);
   EXPECT_EQ(s.moves_done, 1);
@@ -150,12 +167,13 @@ TEST_F(LinkTest, DuplicateAndStaleResponsesAreDiscarded) {
   EXPECT_EQ(s.moves_done, 3);  // the STATUS answer, not a late MOVE duplicate
   std::this_thread::sleep_for(milliseconds(30));
   // 4 requests: each had one stale response before and one duplicate after.
-  EXPECT_EQ(link.stats().stale, 8u);
-  EXPECT_EQ(link.stats().retransmissions, 0u);
+  EXPECT_EQ(delta().stale, 8u);
+  EXPECT_EQ(delta().retransmissions, 0u);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 3);
 }
 
 TEST_F(LinkTest, LinkDownAfterFiveRetransmissions) {
+  link.set_timing(100, 5);  // PROTOCOL.md's numbers
   peer.drop_next = 1000;
   uint8_t seq = link.next_seq();
   auto t0 = steady_clock::now();
@@ -163,10 +181,10 @@ TEST_F(LinkTest, LinkDownAfterFiveRetransmissions) {
   EXPECT_EQ(link.status(s), -ETIMEDOUT);
   int64_t took = ms_since(t0);
   EXPECT_GE(took, 590);
-  EXPECT_LT(took, 900);
+  EXPECT_LT(took, 1500);
   EXPECT_EQ(with_seq(peer, seq).size(), 6u);
-  EXPECT_EQ(link.stats().retransmissions, 5u);
-  EXPECT_EQ(link.stats().link_down, 1u);
+  EXPECT_EQ(delta().retransmissions, 5u);
+  EXPECT_EQ(delta().link_down, 1u);
   // The link recovers when the peer answers again; the next request has a new SEQ.
   peer.drop_next = 0;
   ASSERT_EQ(link.status(s), 0);
@@ -179,14 +197,14 @@ TEST_F(LinkTest, ConfiguredTimingIsUsed) {
   auto t0 = steady_clock::now();
   rbx1_status_resp s{};
   EXPECT_EQ(link.status(s), -ETIMEDOUT);
-  EXPECT_LT(ms_since(t0), 200);
-  EXPECT_EQ(link.stats().retransmissions, 2u);
+  EXPECT_LT(ms_since(t0), 450);  // 3 x 30 ms, far from the default 6 x 100 ms
+  EXPECT_EQ(delta().retransmissions, 2u);
 }
 
 TEST_F(LinkTest, EstopGoesOutWhileARequestWaits) {
-  link.set_timing(300, 5);
+  link.set_timing(1000, 5);  // the held MOVE response must not be retransmitted, even on a loaded machine
   peer.delay_type = RBX1_MSG_MOVE;
-  peer.delay_ms = 150;
+  peer.delay_ms = 300;
   auto move = std::async(std::launch::async, [&] {
     rbx1_move_resp r{};
     return link.move(some_move(1), r);
@@ -196,13 +214,13 @@ TEST_F(LinkTest, EstopGoesOutWhileARequestWaits) {
   rbx1_estop_resp e{};
   ASSERT_EQ(link.estop(e), 0);
   EXPECT_EQ(e.status, RBX1_OK);
-  EXPECT_LT(ms_since(t0), 50);
+  EXPECT_LT(ms_since(t0), 150);
   EXPECT_EQ(move.wait_for(milliseconds(0)), std::future_status::timeout);  // still outstanding
   EXPECT_EQ(move.get(), 0);
   EXPECT_EQ(peer.executed(RBX1_MSG_ESTOP), 1);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 1);
   EXPECT_LT(peer.sent_at(RBX1_MSG_ESTOP), peer.sent_at(RBX1_MSG_MOVE));
-  EXPECT_EQ(link.stats().retransmissions, 0u);
+  EXPECT_EQ(delta().retransmissions, 0u);
 }
 
 TEST_F(LinkTest, EstopFromManyThreads) {
@@ -214,15 +232,32 @@ TEST_F(LinkTest, EstopFromManyThreads) {
   EXPECT_EQ(peer.executed(RBX1_MSG_ESTOP), 4);
 }
 
-TEST_F(LinkTest, HeartbeatOnlyWhenDue) {
+TEST_F(LinkTest, HeartbeatOnlyWhenIdle) {
   EXPECT_EQ(link.heartbeat_if_due(10000), 0);
   EXPECT_EQ(peer.executed(RBX1_MSG_HEARTBEAT), 0);
-  link.start_heartbeat(40);
-  std::this_thread::sleep_for(milliseconds(230));
+  link.start_heartbeat(200);
+  rbx1_status_resp s{};
+  for (int i = 0; i < 15; ++i) {  // busy: other requests keep the firmware fed
+    ASSERT_EQ(link.status(s), 0);
+    std::this_thread::sleep_for(milliseconds(20));
+  }
+  EXPECT_EQ(peer.executed(RBX1_MSG_HEARTBEAT), 0);
+  auto t0 = steady_clock::now();
+  while (peer.executed(RBX1_MSG_HEARTBEAT) < 2 && ms_since(t0) < 3000) std::this_thread::sleep_for(milliseconds(5));
   link.stop_heartbeat();
-  int n = peer.executed(RBX1_MSG_HEARTBEAT);
-  EXPECT_GE(n, 3);
-  EXPECT_LE(n, 6);
+  EXPECT_EQ(peer.executed(RBX1_MSG_HEARTBEAT), 2);
+  EXPECT_GE(ms_since(t0), 370);  // idle: one HEARTBEAT per 200 ms, not more often
+}
+
+// A board that answers only after its bootloader ran (the first open after plug-in resets an Arduino).
+TEST(Link, HandshakeWaitsForABootingBoard) {
+  FakePeer peer;
+  peer.drop_next = 9;  // 1.5 HELLO exchanges of silence
+  Link link;
+  std::string error;
+  ASSERT_EQ(link.open(peer.slave_path(), 115200, error), 0) << error;
+  EXPECT_EQ(peer.executed(RBX1_MSG_HELLO), 1);
+  EXPECT_EQ(link.stats().link_down, 1u);
 }
 
 TEST(Link, VersionMismatchIsAClearError) {
@@ -251,9 +286,15 @@ TEST(Link, SilentPeerFailsTheHandshake) {
   peer.drop_next = 1000;
   Link link;
   link.set_timing(20, 1);
+  link.set_boot_wait(300);
   std::string error;
+  auto t0 = steady_clock::now();
   EXPECT_EQ(link.open(peer.slave_path(), 115200, error), -ETIMEDOUT);
+  EXPECT_GE(ms_since(t0), 300);  // kept asking through the boot wait
+  EXPECT_LT(ms_since(t0), 1500);
   EXPECT_NE(error.find("no HELLO response"), std::string::npos) << error;
+  EXPECT_GE(peer.received().size(), 4u);  // more than one HELLO exchange of 2 transmissions (about 8 when idle)
+  EXPECT_EQ(peer.executed(RBX1_MSG_HELLO), 0);
 }
 
 // The port is a symlink (as a udev rule makes one); the device behind it vanishes and a new one appears.
@@ -278,7 +319,7 @@ TEST(Link, ReconnectsWhenThePortReturns) {
   auto t0 = steady_clock::now();
   while (link.connected() && ms_since(t0) < 1000) std::this_thread::sleep_for(milliseconds(5));
   EXPECT_FALSE(link.connected());
-  EXPECT_LT(ms_since(t0), 200);  // seen without a request outstanding
+  EXPECT_LT(ms_since(t0), 500);  // seen without a request outstanding
   rbx1_status_resp s{};
   int r = link.status(s);
   EXPECT_TRUE(r == -ENODEV || r == -EIO) << r;

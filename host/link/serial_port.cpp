@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cstring>
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/ioctl.h>
 #include <unistd.h>
 
@@ -46,6 +47,14 @@ int open_serial(const std::string& path, int baud, std::string& error) {
   if (fd < 0) {
     int e = errno;
     error = path + ": " + std::strerror(e);
+    return -e;
+  }
+  // TIOCEXCL stops other opens, except root's; the advisory lock (as pyserial's exclusive=True takes) holds for
+  // root too, so two links never share a port.
+  if (flock(fd, LOCK_EX | LOCK_NB) < 0) {
+    int e = errno == EWOULDBLOCK ? EBUSY : errno;
+    error = path + ": in use by another program";
+    ::close(fd);
     return -e;
   }
   if (ioctl(fd, TIOCEXCL) < 0) {

@@ -8,7 +8,8 @@ namespace rbx1::link {
 bool supported_baud(int baud);
 
 // Opens path (a tty, a pty slave or a symlink to one) for reading and writing: raw 8N1, no flow control,
-// HUPCL cleared (opening/closing must not reset an Arduino), TIOCEXCL, blocking writes.
+// HUPCL cleared (opening/closing must not reset an Arduino), TIOCEXCL plus an flock (-EBUSY when another
+// program has it), blocking writes.
 // Returns the fd, or a negative errno with error set to "PATH: reason".
 int open_serial(const std::string& path, int baud, std::string& error);
 

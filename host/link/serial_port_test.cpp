@@ -49,6 +49,19 @@ TEST(SerialPort, RawModeNoHangupExclusiveAt250000) {
   }
 }
 
+TEST(SerialPort, SecondOpenIsRefused) {
+  Pty pty;
+  std::string error;
+  int fd = open_serial(pty.path, 115200, error);
+  ASSERT_GE(fd, 0) << error;
+  EXPECT_EQ(open_serial(pty.path, 115200, error), -EBUSY);  // also for root, whom TIOCEXCL lets through
+  EXPECT_EQ(error, pty.path + ": in use by another program");
+  ::close(fd);
+  fd = open_serial(pty.path, 115200, error);
+  EXPECT_GE(fd, 0) << error;
+  ::close(fd);
+}
+
 TEST(SerialPort, BytesPassUnchanged) {
   Pty pty;
   std::string error;
@@ -79,7 +92,8 @@ TEST(SerialPort, RefusesOtherBauds) {
 TEST(LinkConfig, ParsesAndChecksTheLinkTable) {
   rbx1::config::Errors errors;
   toml::table t = rbx1::config::parse_text(
-      "[link]\nport = \"/dev/rbx1\"\nbaud = 250000\ntimeout_ms = 150\nretries = 3\nheartbeat_ms = 300\n", errors);
+      "[link]\nport = \"/dev/rbx1\"\nbaud = 250000\ntimeout_ms = 150\nretries = 3\nheartbeat_ms = 300\n"
+      "boot_wait_ms = 0\n", errors);
   rbx1::config::Section root(&t, "", errors);
   LinkConfig c;
   parse_link_config(root.section("link"), c);
@@ -89,6 +103,7 @@ TEST(LinkConfig, ParsesAndChecksTheLinkTable) {
   EXPECT_EQ(c.timeout_ms, 150);
   EXPECT_EQ(c.retries, 3);
   EXPECT_EQ(c.heartbeat_ms, 300);
+  EXPECT_EQ(c.boot_wait_ms, 0);
 }
 
 TEST(LinkConfig, DefaultsAndErrorsNameTheKey) {

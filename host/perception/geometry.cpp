@@ -22,19 +22,6 @@ float sample(const cv::Mat& img, double x, double y) {
 
 namespace {
 
-float at(const cv::Mat& s, int x, int y) {
-  return s.at<float>(std::clamp(y, 0, s.rows - 1), std::clamp(x, 0, s.cols - 1));
-}
-
-// Sobel gradient of the layer at one pixel, scaled to units per pixel (paper Eq. 1).
-cv::Point2d gradient(const cv::Mat& s, int x, int y) {
-  double gx = (at(s, x + 1, y - 1) - at(s, x - 1, y - 1)) + 2 * (at(s, x + 1, y) - at(s, x - 1, y)) +
-              (at(s, x + 1, y + 1) - at(s, x - 1, y + 1));
-  double gy = (at(s, x - 1, y + 1) - at(s, x - 1, y - 1)) + 2 * (at(s, x, y + 1) - at(s, x, y - 1)) +
-              (at(s, x + 1, y + 1) - at(s, x + 1, y - 1));
-  return {gx / 8, gy / 8};
-}
-
 // Where the layer crosses its half level along the line p + t n, t in [-2, 2], nearest to p.
 double half_level_offset(const cv::Mat& s, cv::Point2d p, cv::Point2d n) {
   constexpr int kSteps = 8;  // samples every 0.25 px each way
@@ -72,6 +59,13 @@ bool measure_geometry(const Layer& layer, Geometry& out) {
   out.mu02 = m.mu02 / m.m00;
   out.mu11 = m.mu11 / m.m00;
 
+  // The paper's edge image (Eq. 1-2): |G| of the layer against t, counted over the object's ROI.
+  cv::Mat gx, gy, mag2;
+  cv::Sobel(s, gx, CV_32F, 1, 0, 3, 1.0 / 8);
+  cv::Sobel(s, gy, CV_32F, 0, 1, 3, 1.0 / 8);
+  mag2 = gx.mul(gx) + gy.mul(gy);
+  out.edge_pixels = cv::countNonZero(mag2 > kEdgeThreshold * kEdgeThreshold);
+
   std::vector<std::vector<cv::Point>> contours;
   cv::findContours(layer.inside.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
   if (contours.empty()) return false;
@@ -80,7 +74,7 @@ bool measure_geometry(const Layer& layer, Geometry& out) {
   out.contour.clear();
   out.contour.reserve(c.size());
   for (const cv::Point& p : c) {
-    cv::Point2d g = gradient(s, p.x, p.y);
+    cv::Point2d g(gx.at<float>(p), gy.at<float>(p));
     double mag = std::hypot(g.x, g.y);
     if (mag <= kEdgeThreshold) continue;  // Eq. 2 against t: not an edge pixel
     cv::Point2d n = g / mag;

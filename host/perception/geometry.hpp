@@ -4,7 +4,7 @@
 
 namespace rbx1::vision {
 
-inline constexpr double kEdgeThreshold = 0.05;  // t of the paper: |G| of the soft layer, per pixel (a step is 0.5)
+inline constexpr double kEdgeThreshold = 0.1;  // t of the paper: |G| of the soft layer, per pixel (a step is 0.5)
 
 // Centroid and second moments of the soft layer; the outer contour's edge pixels (|G| > t) moved along the
 // gradient to the layer's half level (sub-pixel); the r-theta profile of those points. false if no edge.

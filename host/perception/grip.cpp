@@ -70,13 +70,16 @@ RayHits cast_rays(const Geometry& g, int lines) {
     if (std::abs(dt) > 0.75 * M_PI) continue;  // the segment passes over the centroid itself
     double lo = std::min(ta, ta + dt), hi = std::max(ta, ta + dt);
     double dx = bx - ax, dy = by - ay;
-    // Half-open angular interval, so a ray through a vertex is counted once.
-    int j0 = int(std::ceil(lo / step)), j1 = int(std::ceil(hi / step)) - 1;
+    // Rays through a vertex may be found by both segments (harmless for max/min); widen by a hair so that
+    // rounding in atan2 at +-pi never loses one.
+    int j0 = int(std::ceil((lo - 1e-9) / step)), j1 = int(std::floor((hi + 1e-9) / step));
     for (int j = j0; j <= j1; ++j) {
       double psi = j * step;
       double ux = std::cos(psi), uy = std::sin(psi);
       double den = cross(ux, uy, dx, dy);
       if (std::abs(den) < 1e-12) continue;
+      double sp = cross(ax, ay, ux, uy) / den;
+      if (sp < -1e-9 || sp > 1 + 1e-9) continue;
       double r = cross(ax, ay, dx, dy) / den;
       if (r < 0) continue;
       size_t k = size_t(((j % rays) + rays) % rays);
@@ -98,7 +101,7 @@ bool chord_at(const Geometry& g, double phi, double& tmin, double& tmax) {
     double den = cross(ux, uy, dx, dy);
     if (std::abs(den) < 1e-12) continue;
     double s = cross(ax, ay, ux, uy) / den;
-    if (s < 0 || s >= 1) continue;
+    if (s < -1e-9 || s > 1 + 1e-9) continue;
     double t = cross(ax, ay, dx, dy) / den;
     if (!any) tmin = tmax = t;
     tmin = std::min(tmin, t), tmax = std::max(tmax, t);

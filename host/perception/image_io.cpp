@@ -5,6 +5,9 @@
 #include <fstream>
 #include <vector>
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -15,7 +18,8 @@ uint32_t be32(const unsigned char* p) { return (uint32_t(p[0]) << 24) | (uint32_
 
 // Width and height from a PNG or JPEG header (the formats the camera and the tools write); false if unknown.
 bool header_size(const std::vector<unsigned char>& b, long long& w, long long& h) {
-  if (b.size() >= 24 && b[0] == 0x89 && b[1] == 'P' && b[2] == 'N' && b[3] == 'G') {
+  if (b.size() >= 24 && b[0] == 0x89 && b[1] == 'P' && b[2] == 'N' && b[3] == 'G' && b[12] == 'I' && b[13] == 'H' &&
+      b[14] == 'D' && b[15] == 'R') {
     w = be32(&b[16]);
     h = be32(&b[20]);
     return true;
@@ -94,11 +98,16 @@ bool read_image(const std::string& path, cv::Mat& out, std::string& error) {
     return false;
   }
   cv::Mat img;
+  // Codec libraries (libpng, libjpeg) print their own complaints on stderr; the caller's one line says it all.
+  int saved = ::dup(2), devnull = ::open("/dev/null", O_WRONLY);
+  if (saved >= 0 && devnull >= 0) ::dup2(devnull, 2);
   try {
     img = cv::imdecode(bytes, cv::IMREAD_ANYCOLOR | cv::IMREAD_ANYDEPTH);
   } catch (const cv::Exception&) {
     img.release();
   }
+  if (saved >= 0) ::dup2(saved, 2), ::close(saved);
+  if (devnull >= 0) ::close(devnull);
   if (img.empty()) {
     error = path + ": not a readable image (corrupt or unknown format)";
     return false;

@@ -94,23 +94,45 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
     }
     keep.push_back({i, box});
   }
-  // Detection order: by rows of the top edge, then left to right (as one reads the annotated image).
-  std::sort(keep.begin(), keep.end(), [](const Cand& a, const Cand& b) {
-    return a.box.y != b.box.y ? a.box.y < b.box.y : a.box.x < b.box.x;
-  });
   const cv::Rect frame(0, 0, d.cols, d.rows);
+  auto grow = [&](cv::Rect box) {
+    return cv::Rect(box.x - opt.margin_px, box.y - opt.margin_px, box.width + 2 * opt.margin_px,
+                    box.height + 2 * opt.margin_px) & frame;
+  };
   for (const Cand& k : keep) {
-    cv::Rect roi(k.box.x - opt.margin_px, k.box.y - opt.margin_px, k.box.width + 2 * opt.margin_px,
-                 k.box.height + 2 * opt.margin_px);
-    roi &= frame;
     Layer layer;
-    make_layer(con, out.labels, k.label, roi, out.threshold, layer);
-    if (cv::countNonZero(layer.inside) < opt.min_area_px) {
-      ++out.specks;
+    make_layer(con, out.labels, k.label, grow(k.box), out.threshold, layer);
+    // Near objects joined by their blurred edges at the low threshold come apart at the half level:
+    // each piece big enough becomes an object of its own, with a new label.
+    cv::Mat pl, ps, pc;
+    int np = cv::connectedComponentsWithStats(layer.inside, pl, ps, pc, 8, CV_32S);
+    std::vector<int> big;
+    for (int p = 1; p < np; ++p)
+      if (ps.at<int>(p, cv::CC_STAT_AREA) >= opt.min_area_px) big.push_back(p);
+    if (big.size() <= 1) {
+      if (cv::countNonZero(layer.inside) < opt.min_area_px) {
+        ++out.specks;
+        continue;
+      }
+      out.layers.push_back(std::move(layer));
       continue;
     }
-    out.layers.push_back(std::move(layer));
+    for (int p : big) {
+      int id = int(out.obstacle.size());
+      out.obstacle.push_back(1);
+      cv::Mat lab = out.labels(layer.roi);
+      lab.setTo(id, (pl == p) & (lab == k.label));
+      cv::Rect box(ps.at<int>(p, cv::CC_STAT_LEFT) + layer.roi.x, ps.at<int>(p, cv::CC_STAT_TOP) + layer.roi.y,
+                   ps.at<int>(p, cv::CC_STAT_WIDTH), ps.at<int>(p, cv::CC_STAT_HEIGHT));
+      Layer piece;
+      make_layer(con, out.labels, id, grow(box), out.threshold, piece);
+      if (cv::countNonZero(piece.inside) >= opt.min_area_px) out.layers.push_back(std::move(piece));
+    }
   }
+  // Detection order: by rows of the top edge, then left to right (split pieces included).
+  std::stable_sort(out.layers.begin(), out.layers.end(), [](const Layer& a, const Layer& b) {
+    return a.roi.y != b.roi.y ? a.roi.y < b.roi.y : a.roi.x < b.roi.x;
+  });
   return true;
 }
 

@@ -27,7 +27,8 @@ struct Geometry {
   cv::Point2d centroid;               // area centroid of the soft layer
   double area_px = 0;                 // covered area (sum of the soft layer)
   double mu20 = 0, mu02 = 0, mu11 = 0;  // central second moments of the area, per unit area
-  std::vector<EdgePoint> contour;     // outer contour, ordered, sub-pixel (these are the edge points)
+  int edge_pixels = 0;                // pixels of the layer with |G| > t (paper Eq. 1-2): the edge image
+  std::vector<EdgePoint> contour;     // outer contour: its edge pixels moved to sub-pixel positions, ordered
   std::vector<double> theta, r;       // r-theta profile (Eq. 3-4): edge points sorted by angle, theta in [0, 2pi)
 };
 

@@ -129,7 +129,7 @@ nlohmann::json Vision::to_json(const Detection& det) const {
     j["centroid_px"] = pt(o.geometry.centroid, 1e-3);
     j["centroid_cm"] = o.centroid_cm ? pt(*o.centroid_cm, 1e-4) : json(nullptr);
     j["area_px"] = std::lround(o.geometry.area_px);
-    j["edge_points"] = o.geometry.contour.size();
+    j["edge_points"] = o.geometry.edge_pixels;
     j["orientation_deg"] = round_to(o.pose.orientation_deg, 1e-3);
     j["axis_line"] = {{"slope", o.pose.slope ? json(round_to(*o.pose.slope, 1e-5)) : json(nullptr)},
                       {"intercept", o.pose.intercept ? json(round_to(*o.pose.intercept, 1e-3)) : json(nullptr)}};

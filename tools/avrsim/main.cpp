@@ -151,6 +151,7 @@ int main(int argc, char** argv) {
   const double started = t0;
   avr_cycle_count_t c0 = avr->cycle;
   std::string line;
+  double last_warning = -1e9;
 
   while (!g_stop) {
     const avr_cycle_count_t until = avr->cycle + slice;
@@ -201,6 +202,11 @@ int main(int argc, char** argv) {
     } else if (-ahead > max_lag) {
       t0 = now - max_lag;  // forgive the debt: a burst would make firmware timeouts fire early
       c0 = avr->cycle;
+      if (now - last_warning > 5.0) {  // say so: timing checks against this board are then unreliable
+        std::fprintf(stderr, "rbx1-avrsim: simulation behind real time by over %.0f ms (host CPU overloaded)\n",
+                     max_lag * 1000);
+        last_warning = now;
+      }
     }
   }
   finish(board, probes, json_path, 0);

@@ -90,6 +90,7 @@ void Probes::on_vector(avr_irq_t*, uint32_t value, void* param) {
   auto* h = static_cast<Hook*>(param);
   Probes* p = h->probe;
   if (value) {
+    if (p->estop_open_ && !p->entry_after_edge_[h->index]) p->entry_after_edge_[h->index] = p->avr_->cycle;
     p->running_.push_back({static_cast<uint8_t>(h->index), p->avr_->cycle, 0});
     return;
   }
@@ -116,6 +117,7 @@ void Probes::on_estop_edge() {
   estop_edge_ = avr_->cycle;
   estop_last_pulse_ = 0;
   estop_disabled_at_ = 0;
+  entry_after_edge_.fill(0);
   estop_events_++;
 }
 
@@ -124,6 +126,9 @@ void Probes::finish_estop_event() {
   estop_open_ = false;
   int64_t lat = estop_last_pulse_ ? static_cast<int64_t>(estop_last_pulse_ - estop_edge_) : 0;
   estop_worst_ = std::max(estop_worst_, lat);
+  const int v = step_vector();
+  if (v >= 0 && entry_after_edge_[v])
+    estop_reaction_worst_ = std::max(estop_reaction_worst_, static_cast<int64_t>(entry_after_edge_[v] - estop_edge_));
   if (estop_disabled_at_)
     estop_disable_worst_ = std::max(estop_disable_worst_, static_cast<int64_t>(estop_disabled_at_ - estop_edge_));
 }
@@ -170,6 +175,8 @@ nlohmann::json Probes::to_json() const {
   j["estop_latency_cycles"] = copy.estop_worst_ >= 0 ? nlohmann::json(copy.estop_worst_) : nlohmann::json(nullptr);
   j["estop_disable_cycles"] =
       copy.estop_disable_worst_ >= 0 ? nlohmann::json(copy.estop_disable_worst_) : nlohmann::json(nullptr);
+  j["estop_isr_reaction_cycles"] =
+      copy.estop_reaction_worst_ >= 0 ? nlohmann::json(copy.estop_reaction_worst_) : nlohmann::json(nullptr);
   j["estop_events"] = copy.estop_events_;
   j["first_pulse_cycle"] = any_pulse_ ? nlohmann::json(first_pulse_cycle_) : nlohmann::json(nullptr);
   j["last_pulse_cycle"] = any_pulse_ ? nlohmann::json(last_pulse_cycle_) : nlohmann::json(nullptr);

@@ -68,6 +68,8 @@ class Probes {
   uint64_t estop_edge_ = 0;
   uint64_t estop_last_pulse_ = 0;  // 0: none after the edge
   uint64_t estop_disabled_at_ = 0; // cycle when every driver was disabled after the edge, 0: not yet
+  std::array<uint64_t, 64> entry_after_edge_{};  // first entry of each vector after the edge, 0: none yet
+  int64_t estop_reaction_worst_ = -1;           // edge to the step ISR's first call after it
   int estop_events_ = 0;
   int64_t estop_worst_ = -1;
   int64_t estop_disable_worst_ = -1;

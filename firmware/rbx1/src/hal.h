@@ -19,7 +19,6 @@ void hal_serial_write(const uint8_t *data, uint8_t n);
 // Step timer (2 MHz ticks): start fires st_step_isr() after `ticks`; period (called inside st_step_isr) sets the
 // time to the next call; stop cancels it. ticks is 2..65535.
 void hal_step_timer_start(uint16_t ticks);
-void hal_step_timer_stop(void);
 
 // Outputs. Masks have one bit per joint (bit 0 = J1).
 void hal_drivers_enable(uint8_t on);      // all EN pins
@@ -29,6 +28,7 @@ void hal_servo_write(uint16_t pulse_us);  // 0 = no pulses (servo limp)
 #include "hal_avr.h"  // the step-path functions below as inline code, for a short ISR
 #else
 void hal_step_timer_period(uint16_t ticks);
+void hal_step_timer_stop(void);
 void hal_step_high(uint8_t mask);        // raise STEP of the joints in mask
 void hal_step_low(void);                 // lower every STEP
 void hal_dir_write(uint8_t positive_mask);  // DIR per joint: 1 = positive (pins.h RBX1_DIR_POSITIVE_LEVEL)

@@ -85,14 +85,6 @@ void hal_step_timer_start(uint16_t ticks) {
   SREG = s;
 }
 
-void hal_step_timer_stop(void) {
-  uint8_t s = SREG;
-  cli();
-  TIMSK1 = 0;
-  TCCR1B = 0;
-  SREG = s;
-}
-
 void hal_drivers_enable(uint8_t on) {
   uint8_t s = SREG;
   cli();  // EN of J3 sits on PORTK, which has no atomic bit instructions

@@ -22,10 +22,20 @@
 #define HAL_READ(sig) ((HAL_PINR(sig##_PORT) >> sig##_BIT) & 1u)
 #define HAL_WRITE(sig, v) do { if (v) HAL_SET(sig); else HAL_CLR(sig); } while (0)
 
-// Called from inside the step ISR only (interrupts off), so the read-modify-write of PORTL/PORTK is safe.
-static inline void hal_step_timer_period(uint16_t ticks) { OCR1A = (uint16_t)(ticks - 1u); }
+// Inline and call-free, so the step ISR's prologue saves only the registers it uses.
+#define HAL_INLINE static inline __attribute__((always_inline))
 
-static inline void hal_step_high(uint8_t mask) {
+// Called from inside the step ISR only (interrupts off), so the 16-bit write needs no guard.
+HAL_INLINE void hal_step_timer_period(uint16_t ticks) { OCR1A = (uint16_t)(ticks - 1u); }
+
+// Also called from the main loop: the two single-byte writes stop the timer whatever interrupts.
+HAL_INLINE void hal_step_timer_stop(void) {
+  TIMSK1 = 0;
+  TCCR1B = 0;
+}
+
+// STEP/DIR writes run inside the step ISR (or with interrupts off), so the read-modify-write of PORTL is safe.
+HAL_INLINE void hal_step_high(uint8_t mask) {
   if (mask & 0x01) HAL_SET(RBX1_J1_STEP);
   if (mask & 0x02) HAL_SET(RBX1_J2_STEP);
   if (mask & 0x04) HAL_SET(RBX1_J3_STEP);
@@ -34,7 +44,7 @@ static inline void hal_step_high(uint8_t mask) {
   if (mask & 0x20) HAL_SET(RBX1_J6_STEP);
 }
 
-static inline void hal_step_low(void) {
+HAL_INLINE void hal_step_low(void) {
   HAL_CLR(RBX1_J1_STEP);
   HAL_CLR(RBX1_J2_STEP);
   HAL_CLR(RBX1_J3_STEP);
@@ -43,7 +53,7 @@ static inline void hal_step_low(void) {
   HAL_CLR(RBX1_J6_STEP);
 }
 
-static inline void hal_dir_write(uint8_t positive) {
+HAL_INLINE void hal_dir_write(uint8_t positive) {
   uint8_t m = RBX1_DIR_POSITIVE_LEVEL ? positive : (uint8_t)~positive;
   HAL_WRITE(RBX1_J1_DIR, m & 0x01);
   HAL_WRITE(RBX1_J2_DIR, m & 0x02);
@@ -53,14 +63,14 @@ static inline void hal_dir_write(uint8_t positive) {
   HAL_WRITE(RBX1_J6_DIR, m & 0x20);
 }
 
-static inline uint8_t hal_limit_inputs(void) {
+HAL_INLINE uint8_t hal_limit_inputs(void) {
   uint8_t m = (uint8_t)(HAL_READ(RBX1_J1_LIMIT) | (HAL_READ(RBX1_J2_LIMIT) << 1) | (HAL_READ(RBX1_J3_LIMIT) << 2) |
                         (HAL_READ(RBX1_J4_LIMIT) << 3) | (HAL_READ(RBX1_J5_LIMIT) << 4) |
                         (HAL_READ(RBX1_J6_LIMIT) << 5));
   return RBX1_LIMIT_TRIGGERED_LEVEL ? m : (uint8_t)(~m & 0x3F);
 }
 
-static inline uint8_t hal_estop_input(void) {
+HAL_INLINE uint8_t hal_estop_input(void) {
   return (uint8_t)(HAL_READ(RBX1_ESTOP) == RBX1_ESTOP_ASSERTED_LEVEL);
 }
 

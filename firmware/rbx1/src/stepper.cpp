@@ -25,7 +25,11 @@ static struct {
   int32_t pos[6];
   int32_t counter[6];  // Bresenham: starts at n-1, minus inc each tick, plus n on a step
   uint32_t inc[6];     // steps of each joint in this block
-  int8_t delta[6];     // +1 / -1
+  int16_t counter16[6];  // the same in 16 bits, used when n fits (most moves): half the work on the AVR
+  int16_t inc16[6];
+  uint16_t done16[6];  // steps done per joint in a small block; pos[] then holds the block's start
+  uint8_t small;       // n < 32768: the 16-bit counters are in use
+  uint8_t dir;         // bit per joint: positive
   uint32_t n;          // dominant steps
   uint32_t left;       // dominant steps still to do
   uint32_t interval;   // current step interval (written by the profile tick)
@@ -60,7 +64,7 @@ void st_init(void) {
 }
 
 // Next step in w ticks (w >= 2); long waits are split into 16-bit chunks.
-static inline void schedule(uint32_t w) {
+static inline __attribute__((always_inline)) void schedule(uint32_t w) {
   if (w > 0xFFFFUL) {
     st.wait_rest = w - ST_CHUNK;
     hal_step_timer_period((uint16_t)ST_CHUNK);
@@ -70,10 +74,37 @@ static inline void schedule(uint32_t w) {
   }
 }
 
-// Time budget: at 16 MHz one step tick of 6 joints costs about 300 cycles (~19 us) including entry/exit, i.e.
-// about 50 cycles per step; at the 30 kHz aggregate target (6 joints x 5 kHz) that is 5k x 300 = 1.5 M cycles/s,
-// under 10% of the CPU. The e-stop input is read first, so no pulse leaves after it is seen. The per-block
-// Bresenham increments are precomputed; velocity changes come from the profile tick as a ready interval.
+// One joint's Bresenham step, unrolled with a constant index so the AVR addresses its fields directly.
+// Small blocks (n < 32768) count 16-bit steps done per joint; others move the 32-bit position directly.
+#define ST_JOINT16(i)                                         \
+  do {                                                        \
+    int16_t c = (int16_t)(st.counter16[i] - st.inc16[i]);     \
+    if (c < 0) {                                              \
+      c = (int16_t)(c + n);                                   \
+      mask |= (uint8_t)(1u << (i));                           \
+      st.done16[i]++;                                         \
+    }                                                         \
+    st.counter16[i] = c;                                      \
+  } while (0)
+#define ST_JOINT32(i)                                         \
+  do {                                                        \
+    int32_t c = st.counter[i] - (int32_t)st.inc[i];           \
+    if (c < 0) {                                              \
+      c += n;                                                 \
+      mask |= (uint8_t)(1u << (i));                           \
+      if (dir & (1u << (i)))                                  \
+        st.pos[i]++;                                          \
+      else                                                    \
+        st.pos[i]--;                                          \
+    }                                                         \
+    st.counter[i] = c;                                        \
+  } while (0)
+
+// Time budget (16 MHz): measured under simavr, see firmware/README.md; about 100 cycles of fixed cost plus
+// 40-60 per joint, i.e. well under 500 cycles (31 us) for six joints stepping at once. At the 30 kHz aggregate
+// target (6 joints x 5 kHz) that is under 2.5 M cycles/s, 16% of the CPU. The e-stop input is read first, so no
+// pulse leaves after it is seen. Per-block Bresenham increments are precomputed; the velocity ramp arrives from
+// the profile tick as a ready interval. The STEP pulse lasts from hal_step_high() to hal_step_low() (>= 2.5 us).
 void st_step_isr(void) {
   if (st.wait_rest) {
     schedule(st.wait_rest);
@@ -85,21 +116,27 @@ void st_step_isr(void) {
     st.estop_seen = 1;
     return;
   }
-  uint8_t mask = 0, bit = 1;
-  for (uint8_t i = 0; i < 6; i++, bit <<= 1) {
-    int32_t c = st.counter[i] - (int32_t)st.inc[i];
-    if (c < 0) {
-      c += (int32_t)st.n;
-      mask |= bit;
-    }
-    st.counter[i] = c;
+  uint8_t mask = 0;
+  if (st.small) {
+    const int16_t n = (int16_t)st.n;
+    ST_JOINT16(0);
+    ST_JOINT16(1);
+    ST_JOINT16(2);
+    ST_JOINT16(3);
+    ST_JOINT16(4);
+    ST_JOINT16(5);
+  } else {
+    const int32_t n = (int32_t)st.n;
+    const uint8_t dir = st.dir;
+    ST_JOINT32(0);
+    ST_JOINT32(1);
+    ST_JOINT32(2);
+    ST_JOINT32(3);
+    ST_JOINT32(4);
+    ST_JOINT32(5);
   }
   hal_step_high(mask);
-  bit = 1;
-  for (uint8_t i = 0; i < 6; i++, bit <<= 1)  // also stretches the pulse past the drivers' 2 us minimum
-    if (mask & bit) st.pos[i] += st.delta[i];
   st.left--;
-  hal_step_low();
   if (st.jog_mask && (uint8_t)((hal_limit_inputs() & st.jog_mask) != 0) == st.jog_level) {
     st.jog_hit = 1;
     st.left = 0;
@@ -107,9 +144,26 @@ void st_step_isr(void) {
   if (st.left == 0) {
     hal_step_timer_stop();
     st.running = 0;
-    return;
+  } else {
+    schedule(st.interval);
   }
-  schedule(st.interval);
+  hal_step_low();
+}
+
+// Position of joint i (interrupts off).
+static int32_t pos_of(uint8_t i) {
+  int32_t p = st.pos[i];
+  if (st.small) p += (st.dir & (1u << i)) ? (int32_t)st.done16[i] : -(int32_t)st.done16[i];
+  return p;
+}
+
+// Makes pos[] the current positions again (interrupts off, timer stopped).
+static void fold_positions(void) {
+  for (uint8_t i = 0; i < RBX1_JOINTS; i++) {
+    st.pos[i] = pos_of(i);
+    st.done16[i] = 0;
+  }
+  st.small = 0;
 }
 
 static uint32_t interval_of(uint32_t v) {
@@ -126,11 +180,15 @@ static void start_steps(const uint32_t steps[6], uint8_t dir_positive, uint32_t 
     if (SETTING(i, RBX1_KEY_INVERT_DIR)) invert |= (uint8_t)(1u << i);
   hal_irq_state s = hal_irq_save();
   hal_dir_write((uint8_t)((dir_positive ^ invert) & 0x3F));  // set now; the first step comes one interval later
+  fold_positions();
+  st.small = n < 0x8000UL;
   for (uint8_t i = 0; i < RBX1_JOINTS; i++) {
     st.inc[i] = steps[i];
     st.counter[i] = (int32_t)(n - 1);
-    st.delta[i] = (dir_positive & (1u << i)) ? 1 : -1;
+    st.inc16[i] = (int16_t)steps[i];  // meaningful only when small (then every steps[i] <= n < 32768)
+    st.counter16[i] = (int16_t)(n - 1);
   }
+  st.dir = dir_positive;
   st.n = n;
   st.left = n;
   st.interval = interval_of(v);
@@ -197,18 +255,21 @@ uint8_t st_busy(void) {
 
 void st_position(int32_t out[6]) {
   hal_irq_state s = hal_irq_save();
-  memcpy(out, st.pos, sizeof(st.pos));
+  for (uint8_t i = 0; i < RBX1_JOINTS; i++) out[i] = pos_of(i);
   hal_irq_restore(s);
 }
 
+// Only at rest (SET_POSITION in IDLE, homing between jogs).
 void st_set_position(const int32_t p[6]) {
   hal_irq_state s = hal_irq_save();
+  fold_positions();
   memcpy(st.pos, p, sizeof(st.pos));
   hal_irq_restore(s);
 }
 
 void st_set_joint_position(uint8_t joint, int32_t p) {
   hal_irq_state s = hal_irq_save();
+  fold_positions();
   st.pos[joint] = p;
   hal_irq_restore(s);
 }

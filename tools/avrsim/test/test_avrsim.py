@@ -119,11 +119,14 @@ def test_estop_latency(sim, lag):
     left = out["pulses"][0]
     assert 0 < left < 20000 and out["pulses"] == [left] * 6
     latency = out["estop_latency_cycles"]
+    assert 0 < out["estop_isr_reaction_cycles"] <= CYCLES_PER_TICK  # the ISR's next tick sees the input
+    # The edge lands anywhere in a tick, possibly inside an ISR already past its e-stop test (one more pulse).
+    isr_max = out["isr"]["max_cycles"]
     if lag == 0:
-        assert latency == 0
+        assert latency <= isr_max
     else:
-        # lag more pulses, one per tick, after the edge that lands somewhere inside a tick
-        assert (lag - 1) * CYCLES_PER_TICK < latency <= lag * CYCLES_PER_TICK + 200
+        # lag more pulses, one per tick, after the edge
+        assert (lag - 1) * CYCLES_PER_TICK < latency <= lag * CYCLES_PER_TICK + isr_max
 
 
 def test_eeprom_survives_reset_and_restart(tmp_path):
@@ -146,6 +149,14 @@ def test_eeprom_survives_reset_and_restart(tmp_path):
         for p in (s, locals().get("s2")):
             if p and p.proc.poll() is None:
                 p.proc.kill()
+
+
+def test_interrupt_priority_loses_nothing(sim):
+    # Two pending vectors, the lower-priority one older: both run, every time.
+    assert sim.cmd("prio") == "prio 1 1"
+    assert sim.cmd("prio") == "prio 2 2"
+    out = sim.quit()
+    assert out["vectors"]["1"]["count"] == 2 and out["vectors"]["8"]["count"] == 2
 
 
 def test_watchdog_reset_reboots(sim):

@@ -41,6 +41,30 @@ static uint8_t line_len;
 static volatile char rx_buf[64];
 static volatile uint8_t rx_head, rx_tail;
 
+static volatile uint8_t int0_calls, int7_calls;
+ISR(INT0_vect) { int0_calls++; }
+ISR(INT7_vect) { int7_calls++; }
+
+/* Raises INT7 (low priority) and then INT0 (high priority) while interrupts are off, so both are pending with the
+ * lower-priority one older; both handlers must run once (simavr serves by priority without losing the other). */
+static void priority_check(void) {
+  DDRD |= _BV(PD0);
+  DDRE |= _BV(PE7);
+  PORTD &= (uint8_t)~_BV(PD0);
+  PORTE &= (uint8_t)~_BV(PE7);
+  EICRA |= _BV(ISC01) | _BV(ISC00);  /* rising edges */
+  EICRB |= _BV(ISC71) | _BV(ISC70);
+  EIFR = _BV(INTF0) | _BV(INTF7);
+  EIMSK |= _BV(INT0) | _BV(INT7);
+  cli();
+  PORTE |= _BV(PE7);
+  PORTD |= _BV(PD0);
+  sei();
+  __asm__ __volatile__("nop\n nop\n nop\n nop\n");
+  PORTE &= (uint8_t)~_BV(PE7);
+  PORTD &= (uint8_t)~_BV(PD0);
+}
+
 static uint8_t estop_raw(void) { return (*pin_reg(RBX1_ESTOP_PORT) >> RBX1_ESTOP_BIT) & 1; }
 
 ISR(USART0_RX_vect) {
@@ -100,6 +124,13 @@ static void command(char *s) {
   }
   if (!strncmp(s, "ew ", 3)) { eeprom_update_byte((uint8_t *)0, (uint8_t)atoi(s + 3)); puts_uart("ok\n"); return; }
   if (!strcmp(s, "er")) { reply_u("ee", eeprom_read_byte((uint8_t *)0)); return; }
+  if (!strcmp(s, "prio")) {
+    priority_check();
+    char buf[24];
+    snprintf(buf, sizeof buf, "prio %u %u\n", int0_calls, int7_calls);
+    puts_uart(buf);
+    return;
+  }
   if (!strcmp(s, "hang")) { wdt_enable(WDTO_15MS); for (;;) {} }
   puts_uart("err\n");
 }

@@ -63,7 +63,7 @@ CLASSES = {
     "rounded_rect": (_rounded_rect(3.4, 1.9, 0.55), "3.4 x 1.9 cm rectangle, 0.55 cm corner radius"),
     "l_shape": (_l_shape(3.2, 1.9, 0.75), "L: 3.2 cm long arm, 1.9 cm short arm, 0.75 cm thick"),
     "l_mirror": (_mirror(_l_shape(3.2, 1.9, 0.75)), "the mirror image of l_shape"),
-    "t_shape": (_t_shape(3.0, 0.75, 0.8, 1.5), "T: 3.0 x 0.75 cm bar, 0.8 x 1.5 cm stem"),
+    "t_shape": (_t_shape(3.0, 0.75, 0.8, 1.9), "T: 3.0 x 0.75 cm bar, 0.8 x 1.9 cm stem"),
     "triangle": (np.array([[0, 0], [3.3, 0], [0.9, 1.7]], float), "scalene triangle 3.3 cm base, 1.7 cm high"),
     "star": (_star(5, 1.45, 0.62), "five-pointed star, 1.45 / 0.62 cm radii"),
     "near_circle": (_ellipse(1.1, 1.03), "almost round disc, 2.2 x 2.06 cm"),

@@ -1,0 +1,141 @@
+// isolation_test.cpp - step I: both polarities, known background, patterned and unevenly lit tables, specks,
+// border objects, wrong background size and all-foreground frames.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+#include "detector.hpp"
+#include "image_io.hpp"
+#include "shapes.hpp"
+
+namespace rbx1::vision {
+namespace {
+
+using namespace test;
+
+std::vector<Poly> three() {
+  return {rectangle({150, 120}, 100, 40, 20), ellipse({450, 150}, 50, 30, -30), triangle({300, 350}, 90, 10)};
+}
+
+int count(const cv::Mat& bgr, Polarity p, const cv::Mat& bg = {}) {
+  DetectorOptions o;
+  o.objects = p;
+  Detection d;
+  std::string e;
+  EXPECT_TRUE(detect(to_gray8(bgr), bg.empty() ? bg : to_gray8(bg), o, nullptr, d, e)) << e;
+  return int(d.objects.size());
+}
+
+TEST(Isolation, DarkObjectsOnLightTable) {
+  Scene s;
+  s.noise_sigma = 4;
+  cv::Mat img = render(s, three());
+  EXPECT_EQ(count(img, Polarity::Auto), 3);
+  EXPECT_EQ(count(img, Polarity::Dark), 3);
+}
+
+TEST(Isolation, LightObjectsOnDarkTable) {
+  Scene s;
+  s.background = 40, s.object = 200, s.noise_sigma = 4;
+  cv::Mat img = render(s, three());
+  EXPECT_EQ(count(img, Polarity::Auto), 3);
+  EXPECT_EQ(count(img, Polarity::Light), 3);
+  Detection d;
+  std::string e;
+  ASSERT_TRUE(detect(to_gray8(img), {}, {}, nullptr, d, e));
+  EXPECT_EQ(d.sign, +1);
+}
+
+TEST(Isolation, UnevenLightAndBlur) {
+  Scene s;
+  s.light_gradient = 60, s.blur_sigma = 1.2, s.noise_sigma = 3;
+  EXPECT_EQ(count(render(s, three()), Polarity::Auto), 3);
+}
+
+// A table with a fine pattern (a wood-grain-like texture of thin stripes), with and without a known background.
+cv::Mat patterned(const cv::Mat& scene, const std::vector<Poly>& polys) {
+  cv::Mat pattern(scene.size(), CV_8UC3);
+  for (int y = 0; y < scene.rows; ++y)
+    for (int x = 0; x < scene.cols; ++x)
+      pattern.at<cv::Vec3b>(y, x) = cv::Vec3b::all(uchar(185 + 14 * std::sin(x * 0.9 + 0.3 * y)));
+  cv::Mat mask(scene.size(), CV_8U, cv::Scalar(0));
+  for (const Poly& p : polys) {
+    std::vector<cv::Point> q;
+    for (auto v : p) q.emplace_back(int(std::lround(v.x)), int(std::lround(v.y)));
+    cv::fillPoly(mask, std::vector<std::vector<cv::Point>>{q}, cv::Scalar(255));
+  }
+  cv::Mat out = pattern.clone();
+  scene.copyTo(out, mask);
+  return out;
+}
+
+TEST(Isolation, PatternedTableAutomaticAndKnownBackground) {
+  Scene s;
+  s.object = 50;
+  cv::Mat plain = render(s, three());
+  cv::Mat img = patterned(plain, three());
+  cv::Mat empty = patterned(render(s, {}), {});
+  EXPECT_EQ(count(img, Polarity::Auto), 3);
+  EXPECT_EQ(count(img, Polarity::Auto, empty), 3);
+  EXPECT_EQ(count(empty, Polarity::Auto), 0);  // no phantom objects on the empty patterned table
+}
+
+TEST(Isolation, KnownBackgroundSubtraction) {
+  Scene s;
+  s.light_gradient = 80;  // strong vignetting: the empty-scene image removes it exactly
+  s.noise_sigma = 2;
+  cv::Mat bg = render(s, {});
+  s.seed = 9;
+  cv::Mat img = render(s, three());
+  EXPECT_EQ(count(img, Polarity::Dark, bg), 3);
+}
+
+TEST(Isolation, BackgroundOfAnotherSizeIsAnError) {
+  Detection d;
+  std::string e;
+  cv::Mat img = to_gray8(render({}, three()));
+  EXPECT_FALSE(detect(img, cv::Mat(100, 100, CV_8U, cv::Scalar(200)), {}, nullptr, d, e));
+  EXPECT_NE(e.find("background is 100x100 but the frame is 640x480"), std::string::npos) << e;
+}
+
+TEST(Isolation, AllForegroundIsAnError) {
+  Detection d;
+  std::string e;
+  cv::Mat img(480, 640, CV_8U, cv::Scalar(30)), bg(480, 640, CV_8U, cv::Scalar(220));
+  EXPECT_FALSE(detect(img, bg, {}, nullptr, d, e));
+  EXPECT_NE(e.find("foreground"), std::string::npos) << e;
+}
+
+TEST(Isolation, SpecksAndBorderObjectsAreDropped) {
+  Scene s;
+  s.noise_sigma = 3;
+  std::vector<Poly> polys = three();
+  polys.push_back(rectangle({322, 60}, 4, 4, 0));     // a speck
+  polys.push_back(rectangle({10, 300}, 60, 30, 0));   // cut by the left border
+  Detection d;
+  std::string e;
+  ASSERT_TRUE(detect(to_gray8(render(s, polys)), {}, {}, nullptr, d, e));
+  EXPECT_EQ(d.objects.size(), 3u);
+  EXPECT_EQ(d.isolation.border, 1);
+  EXPECT_GE(d.isolation.specks, 1);
+}
+
+TEST(Isolation, NoPhantomsOnEmptyNoisyScenes) {
+  for (unsigned seed = 1; seed <= 5; ++seed) {
+    Scene s;
+    s.noise_sigma = 8, s.light_gradient = 40, s.blur_sigma = 0.5, s.seed = seed;
+    EXPECT_EQ(count(render(s, {}), Polarity::Auto), 0) << "seed " << seed;
+  }
+}
+
+TEST(Isolation, NearObjectsStaySeparate) {
+  Scene s;
+  s.noise_sigma = 3, s.blur_sigma = 0.8;
+  // Two bars 3 px apart.
+  EXPECT_EQ(count(render(s, {rectangle({250, 240}, 120, 40, 0), rectangle({250, 283}, 120, 40, 0)}), Polarity::Auto), 2);
+}
+
+}  // namespace
+}  // namespace rbx1::vision
