@@ -117,9 +117,14 @@ TEST_F(Fw, TrapezoidStaysWithinMaxSpeedAndAccel) {
       ASSERT_LE(std::fabs(r[k + 1] - r[k]), acc * dt * 1.01 + slack + 1) << "step " << k;
     }
   }
-  // It ends near rest, not from speed: within a few times the start/stop rate (the last slow steps use the rate
-  // of the previous step, so the ramp-down runs slightly ahead of the ideal one).
-  EXPECT_LE(r.back(), 4 * v0);
+  // It ends at rest, not from speed: the last interval runs at the start/stop rate, mirroring the first, and
+  // the ramp-down stays inside the envelope v^2 = v0^2 + 2 a s of the steps s still to go.
+  EXPECT_NEAR(r.back(), v0, 0.02 * v0);
+  EXPECT_NEAR(r.front(), std::sqrt(v0 * v0 + 2 * acc), 0.05 * v0);
+  for (size_t k = 0; k < r.size(); k++) {
+    double to_go = (double)(r.size() - 1 - k);  // steps after the one that ends interval k
+    ASSERT_LE(r[k], std::sqrt(v0 * v0 + 2 * acc * to_go) * 1.005 + slack) << "step " << k;
+  }
   (void)t1;
   EXPECT_GE(peak, vmax * 0.97);  // and it does reach the cruise speed
   // Time of the ideal trapezoid: n/v + v/a = 5.5 s.
@@ -166,6 +171,18 @@ TEST_F(Fw, QueueFullIsRefused) {
   EXPECT_EQ(status().moves_done, 1);
   EXPECT_EQ(move({10, 0, 0, 0, 0, 0}, 0, &free_slots), RBX1_OK);
   EXPECT_EQ(free_slots, 0);
+}
+
+TEST_F(Fw, InvertDirFlipsTheDirPinNotThePosition) {
+  ready();
+  ASSERT_EQ(config_set(1, RBX1_KEY_INVERT_DIR, 1), RBX1_OK);
+  ASSERT_EQ(move({100, 100, 0, 0, 0, 0}), RBX1_OK);
+  run_until_idle();
+  rbx1_status_resp s = status();
+  EXPECT_EQ(s.position[0], 100);
+  EXPECT_EQ(s.position[1], 100);
+  EXPECT_EQ(sim::board().net[0], 100);
+  EXPECT_EQ(sim::board().net[1], -100);  // the motor of J2 is wired the other way round
 }
 
 TEST_F(Fw, GripperPulseOutsideLimitsIsBadArg) {

@@ -181,6 +181,19 @@ TEST_F(Fw, StopDeceleratesFlushesAndGoesIdle) {
   EXPECT_EQ(s.position[0], sim::board().net[0]);
 }
 
+TEST_F(Fw, EstopHeldAtPowerUpLatchesAtOnce) {
+  sim::board().estop = true;
+  boot();
+  run_ms(3);
+  rbx1_status_resp s = status();
+  EXPECT_EQ(s.state, RBX1_STATE_FAULT);
+  EXPECT_TRUE(s.faults & RBX1_FAULT_ESTOP_INPUT);
+  EXPECT_EQ(simple(RBX1_MSG_CLEAR_FAULT), RBX1_ESTOP_ACTIVE);
+  sim::board().estop = false;
+  EXPECT_EQ(simple(RBX1_MSG_CLEAR_FAULT), RBX1_OK);
+  EXPECT_EQ(status().state, RBX1_STATE_IDLE);
+}
+
 TEST_F(Fw, WatchdogResetIsReported) {
   sim::board().watchdog_reset = true;
   boot();

@@ -19,22 +19,6 @@ std::string fmt(double v) {
   return buf;
 }
 
-// The names of a table's keys. config::Section lists them once it has keys(); until then only the
-// default place names can be read, and any other name is reported by reject_unknown() as an unknown key.
-template <class S>
-std::vector<std::string> table_keys(S& s, const std::vector<std::string>& known) {
-  if constexpr (requires { s.keys(); }) {
-    std::vector<std::string> out;
-    for (const auto& k : s.keys()) out.emplace_back(k);
-    return out;
-  } else {
-    std::vector<std::string> out;
-    for (const auto& k : known)
-      if (s.has(k)) out.push_back(k);
-    return out;
-  }
-}
-
 void read_links(Section s, Links& l) {
   l.base_height_mm = s.number("base_height_mm", l.base_height_mm, 0.0, 2000.0);
   l.upper_arm_mm = s.number("upper_arm_mm", l.upper_arm_mm, 10.0, 2000.0);
@@ -102,10 +86,8 @@ void read_place(Section s, Place& p) {
 }
 
 void read_places(Section s, std::map<std::string, Place>& places) {
-  std::vector<std::string> known;
-  for (const auto& [name, p] : places) known.push_back(name);
   std::map<std::string, Place> out;
-  for (const std::string& name : table_keys(s, known)) {
+  for (const std::string& name : s.keys()) {
     Place p;
     read_place(s.section(name), p);
     out[name] = p;

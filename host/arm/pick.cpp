@@ -110,7 +110,7 @@ bool plan_pick(const ArmConfig& cfg, const Steps& current, const PickObject& obj
     return false;
   }
   uint16_t open_us = 0, closed_us = 0;
-  if (!gripper_pulse_us(cfg.gripper, obj.opening_mm, open_us, error)) return false;
+  if (!gripper_pulse_us(cfg.gripper, obj.opening_mm, open_us, error)) return false;  // the object must fit
   // Open wider than the object by the margin, but never past the gripper's widest opening.
   const double open_mm = std::min(obj.opening_mm + cfg.gripper.margin_mm, cfg.gripper.max_opening_mm);
   gripper_pulse_us(cfg.gripper, open_mm, open_us, error);

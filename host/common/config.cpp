@@ -27,6 +27,14 @@ const toml::node* Section::get(std::string_view key) {
 
 bool Section::has(std::string_view key) const { return table_ && table_->contains(key); }
 
+std::vector<std::string> Section::keys() const {
+  std::vector<std::string> out;
+  if (table_) {
+    for (const auto& [k, v] : *table_) out.emplace_back(k.str());
+  }
+  return out;
+}
+
 static std::string range_text(double min, double max) {
   std::ostringstream s;
   s << "must be within [" << min << ", " << max << "]";

@@ -36,6 +36,8 @@ class Section {
   std::vector<double> numbers(std::string_view key, const std::vector<double>& fallback, double min, double max);
   Section section(std::string_view key);
   bool has(std::string_view key) const;
+  // The table's key names in file order (empty when the table is absent), for tables of user-named entries.
+  std::vector<std::string> keys() const;
   // Adds an error for each key in the table that no call above read (a typo must not pass silently).
   void reject_unknown();
   const std::string& path() const { return path_; }

@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 using namespace rbx1::config;
 
 TEST(Config, ReadsValuesAndDefaults) {
@@ -47,4 +49,15 @@ TEST(Config, MissingFileIsAnError) {
   load_file("/nonexistent/rbx1.toml", errors);
   ASSERT_EQ(errors.messages().size(), 1u);
   EXPECT_EQ(errors.messages()[0], "/nonexistent/rbx1.toml: cannot be read");
+}
+
+TEST(Config, KeysListsTheTable) {
+  Errors errors;
+  toml::table t = parse_text("[places.tray]\nx = 1\n[places.bin]\nx = 2\n", errors);
+  Section root(&t, "", errors);
+  Section places = root.section("places");
+  std::vector<std::string> keys = places.keys();
+  std::sort(keys.begin(), keys.end());
+  EXPECT_EQ(keys, (std::vector<std::string>{"bin", "tray"}));
+  EXPECT_TRUE(root.section("absent").keys().empty());
 }

@@ -179,6 +179,7 @@ TEST(LinkSimFw, InjectedFaultsLoseAndRepeatNothing) {
   std::filesystem::remove(log);
   SimFw sim({"--log-moves", log, "--corrupt", "0.003", "--drop", "0.003", "--seed", "11"});
   Link link;
+  link.set_timing(150, 8);  // headroom for a loaded machine; the faults are still recovered by retransmission
   std::string error;
   ASSERT_EQ(link.open(sim.pty(), 115200, error), 0) << error;
   auto sent = run_moves(link, 30);

@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "fake_peer.hpp"
+#include "serial_port.hpp"
 
 using namespace std::chrono;
 using rbx1::link::Link;
@@ -233,20 +234,41 @@ TEST_F(LinkTest, EstopFromManyThreads) {
 }
 
 TEST_F(LinkTest, HeartbeatOnlyWhenIdle) {
-  EXPECT_EQ(link.heartbeat_if_due(10000), 0);
-  EXPECT_EQ(peer.executed(RBX1_MSG_HEARTBEAT), 0);
-  link.start_heartbeat(200);
   rbx1_status_resp s{};
-  for (int i = 0; i < 15; ++i) {  // busy: other requests keep the firmware fed
-    ASSERT_EQ(link.status(s), 0);
-    std::this_thread::sleep_for(milliseconds(20));
-  }
+  ASSERT_EQ(link.status(s), 0);
+  EXPECT_EQ(link.heartbeat_if_due(5000), 0);  // a request just completed: not due
   EXPECT_EQ(peer.executed(RBX1_MSG_HEARTBEAT), 0);
+  std::this_thread::sleep_for(milliseconds(60));
+  EXPECT_EQ(link.heartbeat_if_due(50), 0);  // idle longer than 50 ms: sent
+  EXPECT_EQ(peer.executed(RBX1_MSG_HEARTBEAT), 1);
+  EXPECT_EQ(link.heartbeat_if_due(5000), 0);  // and that one fed it again
+  EXPECT_EQ(peer.executed(RBX1_MSG_HEARTBEAT), 1);
+  // The background thread: never more often than the period, and silent once stopped.
   auto t0 = steady_clock::now();
-  while (peer.executed(RBX1_MSG_HEARTBEAT) < 2 && ms_since(t0) < 3000) std::this_thread::sleep_for(milliseconds(5));
+  link.start_heartbeat(50);
+  while (peer.executed(RBX1_MSG_HEARTBEAT) < 4 && ms_since(t0) < 3000) std::this_thread::sleep_for(milliseconds(2));
   link.stop_heartbeat();
-  EXPECT_EQ(peer.executed(RBX1_MSG_HEARTBEAT), 2);
-  EXPECT_GE(ms_since(t0), 370);  // idle: one HEARTBEAT per 200 ms, not more often
+  int n = peer.executed(RBX1_MSG_HEARTBEAT);
+  EXPECT_GE(n, 4);
+  EXPECT_GE(ms_since(t0), 140);  // three more at >= 50 ms spacing
+  std::this_thread::sleep_for(milliseconds(120));
+  EXPECT_EQ(peer.executed(RBX1_MSG_HEARTBEAT), n);
+}
+
+// Any fd (here the pty opened by the test itself): no termios changes by the Link, and no reopening.
+TEST(Link, OpenFdSpeaksOverAnyDescriptor) {
+  FakePeer peer;
+  std::string error;
+  int fd = rbx1::link::open_serial(peer.slave_path(), 115200, error);
+  ASSERT_GE(fd, 0) << error;
+  Link link;
+  ASSERT_EQ(link.open_fd(fd, "fake-fd", error), 0) << error;
+  EXPECT_EQ(link.name(), "fake-fd");
+  rbx1_config_get_resp g{};
+  ASSERT_EQ(link.config_get(RBX1_GLOBAL_JOINT, RBX1_KEY_HEARTBEAT_MS, g), 0);
+  EXPECT_EQ(g.value, 255 * 100 + 16);
+  EXPECT_EQ(link.reconnect(error), -EOPNOTSUPP);
+  EXPECT_EQ(error, "fake-fd: opened from an fd, cannot be reopened");
 }
 
 // A board that answers only after its bootloader ran (the first open after plug-in resets an Arduino).

@@ -108,15 +108,13 @@ void contrast_auto(const cv::Mat& gray, Polarity objects, double min_contrast, C
     float* o = bsmall.ptr<float>(y);
     for (int x = 0; x < small.cols; ++x) o[x] = d[x] > 0.05f ? n[x] / d[x] : float(fb[x]);
   }
-  cv::Mat bfull;
-  cv::resize(bsmall, bfull, gray.size(), 0, 0, cv::INTER_LINEAR);
-  cv::Mat b8;
-  bfull.convertTo(b8, CV_8U);
+  cv::Mat s8, b8;
+  bsmall.convertTo(s8, CV_8U);
+  cv::resize(s8, b8, gray.size(), 0, 0, cv::INTER_LINEAR);
   cv::subtract(gray, b8, out.diff, cv::noArray(), CV_16S);
   double median = 0;
-  robust_stats(out.diff, 3, median, out.noise_sigma);
-  out.sign = objects == Polarity::Auto ? decide_sign(out.diff, median, std::max(min_contrast, 4 * out.noise_sigma), 2)
-                                       : sign;
+  robust_stats(out.diff, 4, median, out.noise_sigma);
+  out.sign = sign;  // decided on the low-resolution residual, where objects stand out of the noise
 }
 
 }  // namespace rbx1::vision

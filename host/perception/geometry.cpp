@@ -22,29 +22,23 @@ float sample(const cv::Mat& img, double x, double y) {
 
 namespace {
 
-// Where the layer crosses its half level along the line p + t n, t in [-2, 2], nearest to p.
+// Where the layer crosses its half level along the line p + t n, t in [-2, 2]: searched from p towards the
+// half level (n points up the gradient), linear between samples 0.25 px apart.
 double half_level_offset(const cv::Mat& s, cv::Point2d p, cv::Point2d n) {
-  constexpr int kSteps = 8;  // samples every 0.25 px each way
-  float prev = sample(s, p.x, p.y) - 0.5f;
-  if (prev == 0) return 0;
-  double best = 0;
-  bool found = false;
-  for (int dir : {-1, +1}) {
-    float a = prev;
-    for (int i = 1; i <= kSteps; ++i) {
-      double t = dir * 0.25 * i;
-      float b = sample(s, p.x + t * n.x, p.y + t * n.y) - 0.5f;
-      if ((a < 0) != (b < 0) || b == 0) {
-        double t0 = dir * 0.25 * (i - 1);
-        double tc = t0 + (t - t0) * (a / (a - b));
-        if (!found || std::abs(tc) < std::abs(best)) best = tc;
-        found = true;
-        break;
-      }
-      a = b;
+  constexpr int kSteps = 8;
+  float a = sample(s, p.x, p.y) - 0.5f;
+  if (a == 0) return 0;
+  const int dir = a > 0 ? -1 : +1;
+  for (int i = 1; i <= kSteps; ++i) {
+    double t = dir * 0.25 * i;
+    float b = sample(s, p.x + t * n.x, p.y + t * n.y) - 0.5f;
+    if ((a < 0) != (b < 0) || b == 0) {
+      double t0 = dir * 0.25 * (i - 1);
+      return t0 + (t - t0) * (a / (a - b));
     }
+    a = b;
   }
-  return found ? best : 0;
+  return 0;
 }
 
 }  // namespace
@@ -66,11 +60,8 @@ bool measure_geometry(const Layer& layer, Geometry& out) {
   mag2 = gx.mul(gx) + gy.mul(gy);
   out.edge_pixels = cv::countNonZero(mag2 > kEdgeThreshold * kEdgeThreshold);
 
-  std::vector<std::vector<cv::Point>> contours;
-  cv::findContours(layer.inside.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
-  if (contours.empty()) return false;
-  const auto& c = *std::max_element(contours.begin(), contours.end(),
-                                    [](const auto& a, const auto& b) { return a.size() < b.size(); });
+  const std::vector<cv::Point>& c = layer.outer;
+  if (c.empty()) return false;
   out.contour.clear();
   out.contour.reserve(c.size());
   for (const cv::Point& p : c) {

@@ -9,54 +9,58 @@
 namespace rbx1::vision {
 namespace {
 
-// The object's contrast level: median over its interior, so the half level marks the true edge.
-double object_level(const cv::Mat& c, const cv::Mat& comp, double threshold) {
-  cv::Mat core;
-  cv::erode(comp, core, cv::Mat(), cv::Point(-1, -1), 2);
-  std::vector<float> v;
-  v.reserve(size_t(c.total()));
-  for (int y = 0; y < c.rows; ++y) {
-    const float* cr = c.ptr<float>(y);
-    const uchar* m = core.ptr<uchar>(y);
-    for (int x = 0; x < c.cols; ++x)
-      if (m[x]) v.push_back(cr[x]);
-  }
-  if (v.size() < 5) {
-    double mx = threshold;
-    cv::minMaxLoc(c, nullptr, &mx, nullptr, nullptr, comp);
-    return std::max(mx, threshold);
-  }
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return std::max<double>(v[v.size() / 2], threshold);
-}
-
-// Soft layer: 1 well inside, 0 well outside or on another object, contrast/level across the edge band.
+// Soft layer of one component in one fused pass: s = (c - lo) / (hi - lo) clamped, with lo = 2 sigma and
+// hi = level - 2 sigma around the object's contrast level (median over its pixels), so noise leaves the
+// interior at 1 and the table at 0 while the anti-aliased edge keeps its covered fraction (half level =
+// level / 2). Pixels of other objects, or farther than 2 px from the component, are 0.
 void make_layer(const Contrast& con, const cv::Mat& labels, int label, cv::Rect roi, double threshold, Layer& layer) {
-  cv::Mat lab = labels(roi);
-  cv::Mat comp = lab == label;
-  cv::Mat other = (lab != label) & (lab != 0);
-  cv::Mat c;
-  con.diff(roi).convertTo(c, CV_32F, con.sign);
-  double level = object_level(c, comp, threshold);
-  cv::Mat near;
-  cv::dilate(comp, near, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(7, 7)));
-  cv::Mat half = (c > level / 2) & near & ~other;
-  cv::Mat interior, reach;
-  cv::erode(half, interior, cv::Mat(), cv::Point(-1, -1), 2);
-  cv::dilate(half, reach, cv::Mat(), cv::Point(-1, -1), 2);
-  reach &= ~other;
-  layer.soft.create(roi.size(), CV_32F);
-  const float inv = float(1.0 / level);
+  cv::Mat lab = labels(roi), d = con.diff(roi);
+  cv::Mat comp = lab == label, near;
+  cv::dilate(comp, near, cv::Mat(), cv::Point(-1, -1), 2);
+  const int sign = con.sign;
+  // Median contrast over the component (a histogram: contrast is an integer within +-255).
+  int hist[512] = {0}, n = 0;
   for (int y = 0; y < roi.height; ++y) {
-    const float* cr = c.ptr<float>(y);
-    const uchar* in = interior.ptr<uchar>(y);
-    const uchar* re = reach.ptr<uchar>(y);
-    float* s = layer.soft.ptr<float>(y);
-    for (int x = 0; x < roi.width; ++x) s[x] = in[x] ? 1.f : (re[x] ? std::clamp(cr[x] * inv, 0.f, 1.f) : 0.f);
+    const int16_t* dr = d.ptr<int16_t>(y);
+    const uchar* m = comp.ptr<uchar>(y);
+    for (int x = 0; x < roi.width; ++x)
+      if (m[x]) hist[std::clamp(sign * dr[x] + 256, 0, 511)]++, ++n;
   }
-  layer.inside = half;
+  int acc = 0, med = 0;
+  for (int i = 0; i < 512; ++i)
+    if ((acc += hist[i]) * 2 >= n) {
+      med = i - 256;
+      break;
+    }
+  const double level = std::max<double>(med, threshold);
+  const double lo = std::min(2 * con.noise_sigma, level * 0.25), hi = std::max(level - 2 * con.noise_sigma, level * 0.75);
+  const float a = float(1.0 / (hi - lo)), b = float(-lo / (hi - lo)), half = float(level / 2);
+  layer.soft.create(roi.size(), CV_32F);
+  layer.inside.create(roi.size(), CV_8U);
+  for (int y = 0; y < roi.height; ++y) {
+    const int16_t* dr = d.ptr<int16_t>(y);
+    const int* lr = lab.ptr<int>(y);
+    const uchar* nr = near.ptr<uchar>(y);
+    float* sr = layer.soft.ptr<float>(y);
+    uchar* ir = layer.inside.ptr<uchar>(y);
+    for (int x = 0; x < roi.width; ++x) {
+      bool mine = nr[x] && (lr[x] == label || lr[x] == 0);
+      float c = float(sign * dr[x]);
+      sr[x] = mine ? std::clamp(c * a + b, 0.f, 1.f) : 0.f;
+      ir[x] = mine && c > half ? 255 : 0;
+    }
+  }
   layer.roi = roi;
   layer.label = label;
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(layer.inside, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+  layer.outer.clear();
+  for (auto& c : contours) {
+    double area = cv::contourArea(c);
+    if (area >= 1) layer.pieces.push_back({area, std::move(c)});
+  }
+  std::sort(layer.pieces.begin(), layer.pieces.end(), [](const auto& p, const auto& q) { return p.first > q.first; });
+  if (!layer.pieces.empty()) layer.outer = layer.pieces.front().second;
 }
 
 }  // namespace
@@ -104,28 +108,29 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
     make_layer(con, out.labels, k.label, grow(k.box), out.threshold, layer);
     // Near objects joined by their blurred edges at the low threshold come apart at the half level:
     // each piece big enough becomes an object of its own, with a new label.
-    cv::Mat pl, ps, pc;
-    int np = cv::connectedComponentsWithStats(layer.inside, pl, ps, pc, 8, CV_32S);
-    std::vector<int> big;
-    for (int p = 1; p < np; ++p)
-      if (ps.at<int>(p, cv::CC_STAT_AREA) >= opt.min_area_px) big.push_back(p);
-    if (big.size() <= 1) {
+    int big = 0;
+    for (const auto& p : layer.pieces) big += p.first >= opt.min_area_px;
+    if (big <= 1) {
       if (cv::countNonZero(layer.inside) < opt.min_area_px) {
         ++out.specks;
         continue;
       }
+      layer.pieces.clear();
       out.layers.push_back(std::move(layer));
       continue;
     }
-    for (int p : big) {
+    for (const auto& p : layer.pieces) {
+      if (p.first < opt.min_area_px) continue;
       int id = int(out.obstacle.size());
       out.obstacle.push_back(1);
+      cv::Mat mask(layer.roi.size(), CV_8U, cv::Scalar(0));
+      cv::drawContours(mask, std::vector<std::vector<cv::Point>>{p.second}, 0, cv::Scalar(255), cv::FILLED);
       cv::Mat lab = out.labels(layer.roi);
-      lab.setTo(id, (pl == p) & (lab == k.label));
-      cv::Rect box(ps.at<int>(p, cv::CC_STAT_LEFT) + layer.roi.x, ps.at<int>(p, cv::CC_STAT_TOP) + layer.roi.y,
-                   ps.at<int>(p, cv::CC_STAT_WIDTH), ps.at<int>(p, cv::CC_STAT_HEIGHT));
+      lab.setTo(id, mask & (lab == k.label));
+      cv::Rect box = cv::boundingRect(p.second) + layer.roi.tl();
       Layer piece;
       make_layer(con, out.labels, id, grow(box), out.threshold, piece);
+      piece.pieces.clear();
       if (cv::countNonZero(piece.inside) >= opt.min_area_px) out.layers.push_back(std::move(piece));
     }
   }

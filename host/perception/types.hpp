@@ -16,6 +16,8 @@ struct Layer {
   cv::Rect roi;      // in frame pixels
   cv::Mat soft;      // CV_32F roi: 1 inside, 0 outside, the covered fraction on the edge band
   cv::Mat inside;    // CV_8U roi: 255 where soft >= 0.5 (the object's binary layer)
+  std::vector<cv::Point> outer;  // outer boundary pixels of inside (largest piece), roi coordinates
+  std::vector<std::pair<double, std::vector<cv::Point>>> pieces;  // isolation only: pieces by area
 };
 
 // An edge point (paper Eq. 1-2) moved to its sub-pixel position, in frame pixels; w = contour length it stands for.

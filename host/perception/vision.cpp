@@ -9,7 +9,8 @@
 namespace rbx1::vision {
 namespace {
 
-double round_to(double v, double q) { return std::round(v / q) * q; }
+// Rounds to a multiple of q (a power of ten), so the JSON prints short decimals.
+double round_to(double v, double q) { return std::round(v / q) / std::round(1 / q); }
 nlohmann::json pt(cv::Point2d p, double q) { return {round_to(p.x, q), round_to(p.y, q)}; }
 
 }  // namespace

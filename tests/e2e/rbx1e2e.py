@@ -14,7 +14,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 BIN = ROOT / "build" / "bin"
 DATA = ROOT / "data"
-DEMO = DATA / "demo"
+# The bundled demo data (scene+calibration engineer's); RBX1_E2E_DEMO points the tests at another such folder.
+DEMO = Path(os.environ.get("RBX1_E2E_DEMO", DATA / "demo"))
 sys.path.insert(0, str(ROOT / "protocol" / "python"))
 
 
@@ -65,15 +66,35 @@ def write_config(tmp, cfg):
 
 
 def absolutize(cfg):
-    """data/rbx1.toml's relative paths are relative to data/; a copy elsewhere needs them absolute."""
+    """data/rbx1.toml's relative paths are relative to data/; a copy elsewhere needs them absolute. The demo
+    files come from DEMO."""
+    def resolve(p):
+        if p.startswith("demo/"):
+            return str((DEMO / p[len("demo/"):]).resolve())
+        return p if p.startswith("/") else str((DATA / p).resolve())
     cam = cfg.setdefault("camera", {})
-    if "device" in cam and not cam["device"].startswith("/"):
-        cam["device"] = str((DATA / cam["device"]).resolve())
+    if cam.get("device"):
+        cam["device"] = resolve(cam["device"])
     vis = cfg.setdefault("vision", {})
-    for key in ("background_path", "library_path", "calibration_path"):
-        if vis.get(key) and not vis[key].startswith("/"):
-            vis[key] = str((DATA / vis[key]).resolve())
+    for key in ("background", "library", "calibration"):
+        if vis.get(key):
+            vis[key] = resolve(vis[key])
     return cfg
+
+
+def scene_truth():
+    """The demo scene's exact truth (the scene generator's JSON)."""
+    with open(DEMO / "scene.truth.json") as f:
+        return json.load(f)
+
+
+def truth_label(obj):
+    return obj.get("label") or obj["class"]
+
+
+def scene_labels():
+    """Labels of the demo scene's objects, in the truth's order."""
+    return [truth_label(o) for o in scene_truth()["objects"]]
 
 
 # ---- simulators ------------------------------------------------------------------------------------------------
@@ -326,3 +347,13 @@ def configure_fast_firmware_retrying(port, tries=5):
         except Exception as e:  # LinkError, a corrupted response
             last = e
     raise AssertionError(f"could not configure the firmware: {last}")
+
+
+def home_steps(arm):
+    """The home pose in steps (joint config rounding: halves away from zero)."""
+    out = []
+    for i, deg in enumerate(arm["poses"]["home"]):
+        j = arm["joints"][f"j{i + 1}"]
+        v = j["direction"] * (deg - j.get("zero_deg", 0.0)) * j["motor_steps"] * j["microsteps"] * j["reduction"] / 360
+        out.append(int(math.floor(abs(v) + 0.5)) * (1 if v >= 0 else -1))
+    return out

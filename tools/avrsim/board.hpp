@@ -24,6 +24,7 @@ class Board {
   const char* pty_path() const { return pty_.port[0].slavename; }
   // Drives an input pin to its asserted or released level.
   void set_estop(bool asserted);
+  bool estop() const { return estop_; }
   void set_limit(int joint, bool triggered);  // joint 0..5
   // Power cycle: EEPROM kept (and saved), everything else back to reset state, inputs re-driven.
   void reset();

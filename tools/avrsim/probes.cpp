@@ -90,6 +90,9 @@ void Probes::on_vector(avr_irq_t*, uint32_t value, void* param) {
   auto* h = static_cast<Hook*>(param);
   Probes* p = h->probe;
   if (value) {
+    // simavr's own stack depth (before this entry) is the truth: a watchdog reset abandons calls without RETI.
+    const size_t depth = p->avr_->interrupts.running_ptr;
+    if (p->running_.size() > depth) p->running_.resize(depth);
     if (p->estop_open_ && !p->entry_after_edge_[h->index]) p->entry_after_edge_[h->index] = p->avr_->cycle;
     p->running_.push_back({static_cast<uint8_t>(h->index), p->avr_->cycle, 0});
     return;

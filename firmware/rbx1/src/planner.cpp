@@ -57,8 +57,9 @@ uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6]
   float ramp = (vc * vc - v0 * v0) / (2.0f * amax);
   uint32_t ramp_steps = (uint32_t)(ramp + 0.5f);
   if (ramp_steps > n / 2) ramp_steps = n / 2;
-  b->accel_until = ramp_steps;
-  b->decel_after = n - ramp_steps;
+  b->ramp_steps = ramp_steps;
+  b->v0sq4 = (uint32_t)(4.0f * v0 * v0 + 0.5f);  // <= 4 vc^2 <= 1.6e9: fits
+  b->a8 = (uint32_t)(8.0f * amax + 0.5f);        // 8 a s < 4 (vc^2 - v0^2) + 8 a on the ramps: fits
   b->v0 = to_fixed(v0);
   b->vc = to_fixed(vc);
   float dv = amax * (float)PLAN_V_ONE / (float)PROFILE_TICK_HZ;

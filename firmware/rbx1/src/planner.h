@@ -19,11 +19,12 @@ struct plan_block {
   uint16_t pulse_us;      // gripper pulse
   uint32_t steps[6];      // |target - start| per joint
   uint32_t n;             // dominant joint's steps (the DDA's tick count)
-  uint32_t accel_until;   // dominant steps of the ramp-up
-  uint32_t decel_after;   // dominant steps before the ramp-down starts
+  uint32_t ramp_steps;    // dominant steps of the ramp-up (and of the ramp-down)
   uint32_t v0;            // start/end velocity (the first step's rate)
   uint32_t vc;            // cruise velocity
-  uint32_t dv;            // velocity change per profile tick (ACCEL / 1000)
+  uint32_t dv;            // velocity change per profile tick (ACCEL / 1000), for controlled stops
+  uint32_t v0sq4;         // 4 v0^2 and 8 a [steps/s, steps/s^2]: the ramps as (2v)^2 = 4 v0^2 + 8 a s,
+  uint32_t a8;            // s = steps from the nearer end of the move
   int32_t target[6];
 };
 

@@ -39,19 +39,17 @@ static void header_bytes(uint8_t *h) {
 }
 
 uint8_t settings_load(void) {
-  static settings_t tmp;  // static: keeps it off the small AVR stack
   uint8_t h[4], want[4];
   header_bytes(want);
   uint16_t a = SETTINGS_EEPROM_ADDR;
   for (uint8_t i = 0; i < 4; i++) h[i] = hal_eeprom_read(a++);
-  uint8_t *p = (uint8_t *)&tmp;
+  uint8_t *p = (uint8_t *)&settings;  // read in place: a bad image is replaced by the defaults below
   for (uint16_t i = 0; i < sizeof(settings_t); i++) p[i] = hal_eeprom_read(a++);
   uint16_t crc = (uint16_t)(hal_eeprom_read(a) | (hal_eeprom_read((uint16_t)(a + 1)) << 8));
-  if (memcmp(h, want, 4) != 0 || crc != image_crc(h, &tmp)) {
+  if (memcmp(h, want, 4) != 0 || crc != image_crc(h, &settings)) {
     settings_defaults();
     return 0;
   }
-  memcpy(&settings, &tmp, sizeof(settings));
   return 1;
 }
 

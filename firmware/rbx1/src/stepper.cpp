@@ -14,7 +14,7 @@
 
 // interval [2 MHz ticks] = STEP_TIMER_HZ / (v / 65536) = ST_K / (v >> 8)
 #define ST_K (STEP_TIMER_HZ * 256UL)
-#define ST_CHUNK 0x8000UL  // intervals above 16 bits are served in chunks of this many ticks
+#define ST_CHUNK ((uint32_t)0x8000)  // intervals above 16 bits are served in chunks of this many ticks
 
 #define ENTRY_NONE 0
 #define ENTRY_QUEUE 1  // a queue entry (move or gripper), completes into moves_done
@@ -29,6 +29,7 @@ static struct {
   int16_t inc16[6];
   uint16_t done16[6];  // steps done per joint in a small block; pos[] then holds the block's start
   uint8_t small;       // n < 32768: the 16-bit counters are in use
+  uint8_t waiting;     // wait_rest != 0 (one byte to test in the common case)
   uint8_t dir;         // bit per joint: positive
   uint32_t n;          // dominant steps
   uint32_t left;       // dominant steps still to do
@@ -46,7 +47,8 @@ static struct {
   uint8_t entry;         // ENTRY_*
   plan_block *block;     // executing queue entry
   uint32_t v;            // 16.16 steps/s
-  uint32_t v0, vc, dv, accel_until, decel_after;
+  uint32_t v0, vc, dv;   // start/stop and cruise velocity, per-tick change of a controlled stop
+  uint32_t ramp_steps, v0sq4, a8;  // the ramps by position (planner.h)
   uint16_t elapsed_ms;   // since the entry started (saturates)
   uint16_t duration_ms;
   uint8_t limits_start;  // limit inputs when the motion started: only new triggers are faults
@@ -67,9 +69,10 @@ void st_init(void) {
 static inline __attribute__((always_inline)) void schedule(uint32_t w) {
   if (w > 0xFFFFUL) {
     st.wait_rest = w - ST_CHUNK;
+    st.waiting = 1;
     hal_step_timer_period((uint16_t)ST_CHUNK);
   } else {
-    st.wait_rest = 0;
+    st.waiting = 0;
     hal_step_timer_period((uint16_t)w);
   }
 }
@@ -100,13 +103,14 @@ static inline __attribute__((always_inline)) void schedule(uint32_t w) {
     st.counter[i] = c;                                        \
   } while (0)
 
-// Time budget (16 MHz): measured under simavr, see firmware/README.md; about 100 cycles of fixed cost plus
-// 40-60 per joint, i.e. well under 500 cycles (31 us) for six joints stepping at once. At the 30 kHz aggregate
-// target (6 joints x 5 kHz) that is under 2.5 M cycles/s, 16% of the CPU. The e-stop input is read first, so no
+// Time budget (16 MHz), measured under simavr (rbx1-avrsim): 316 cycles per interrupt with 1 joint stepping,
+// 345 with 3, 387 with 6 (65 cycles per step; 16-bit counters, moves under 32768 steps), 577 with 6 joints on
+// the 32-bit path. The 30 kHz aggregate target (6 joints x 5 kHz) costs 5k x 387 = 1.9 M cycles/s, 12% of the
+// CPU; 6 joints at the 20 kHz MAX_SPEED limit (120 kHz aggregate) 48%, and still exact. The e-stop input is read first, so no
 // pulse leaves after it is seen. Per-block Bresenham increments are precomputed; the velocity ramp arrives from
 // the profile tick as a ready interval. The STEP pulse lasts from hal_step_high() to hal_step_low() (>= 2.5 us).
 void st_step_isr(void) {
-  if (st.wait_rest) {
+  if (st.waiting) {
     schedule(st.wait_rest);
     return;
   }
@@ -197,9 +201,10 @@ static void start_steps(const uint32_t steps[6], uint8_t dir_positive, uint32_t 
   uint32_t first = st.interval;
   if (first > 0xFFFFUL) {
     st.wait_rest = first - ST_CHUNK;
+    st.waiting = 1;
     first = ST_CHUNK;
   } else {
-    st.wait_rest = 0;
+    st.waiting = 0;
   }
   hal_step_timer_start((uint16_t)first);
   hal_irq_restore(s);
@@ -210,7 +215,7 @@ static void stop_steps(void) {
   hal_step_timer_stop();
   hal_step_low();
   st.running = 0;
-  st.wait_rest = 0;
+  st.waiting = 0;
   hal_irq_restore(s);
 }
 
@@ -297,8 +302,7 @@ void st_jog(uint8_t joint, uint8_t positive, uint32_t max_steps, uint32_t speed,
   pf.block = 0;
   pf.v = pf.v0 = pf.vc = v;  // constant speed: no ramp (homing speeds are low)
   pf.dv = 0;
-  pf.accel_until = 0;
-  pf.decel_after = max_steps;
+  pf.ramp_steps = 0;  // no ramps
   pf.elapsed_ms = 0;
   pf.duration_ms = 0;
   pf.limits_start = hal_limit_inputs();
@@ -331,8 +335,9 @@ static void start_entry(plan_block *b) {
   pf.v0 = b->v0;
   pf.vc = b->vc;
   pf.dv = b->dv;
-  pf.accel_until = b->accel_until;
-  pf.decel_after = b->decel_after;
+  pf.ramp_steps = b->ramp_steps;
+  pf.v0sq4 = b->v0sq4;
+  pf.a8 = b->a8;
   pf.limits_start = hal_limit_inputs();
   if (b->n) start_steps(b->steps, b->dir_positive, b->n, b->v0);
 }
@@ -348,23 +353,52 @@ static void complete_entry(void) {
   queue_pop();
 }
 
-// One velocity step of the trapezoid; the ramp-down starts at a step count so every move ends at rest.
+// Integer square root (bit by bit: no division, ~16 iterations on the AVR).
+static uint32_t isqrt32(uint32_t x) {
+  uint32_t r = 0, bit = 1UL << 30;
+  while (bit > x) bit >>= 2;
+  while (bit) {
+    if (x >= r + bit) {
+      x -= r + bit;
+      r = (r >> 1) + bit;
+    } else {
+      r >>= 1;
+    }
+    bit >>= 2;
+  }
+  return r;
+}
+
+// The trapezoid by position: v^2 = v0^2 + 2 a s, s = steps from the nearer end (the first and the last interval
+// run at v0), capped at vc. Position-based, so the ramp-down ends at rest exactly where the steps run out. A
+// controlled stop decelerates by time from the current velocity instead.
 static void ramp(void) {
   hal_irq_state s = hal_irq_save();
-  uint32_t done = st.n - st.left;
+  uint32_t done = st.n - st.left, left = st.left;
   hal_irq_restore(s);
-  uint32_t v = pf.v;
+  uint32_t v;
   if (pf.stopping) {
+    v = pf.v;
     if (v <= pf.v0 + pf.dv) {  // at the start/stop rate: stop here
       stop_steps();
       return;
     }
     v -= pf.dv;
-  } else if (done >= pf.decel_after) {
-    v = v > pf.v0 + pf.dv ? v - pf.dv : pf.v0;
-  } else if (v < pf.vc) {
-    v = pf.vc - v > pf.dv ? v + pf.dv : pf.vc;
+  } else {
+    // The interval set now is used after the next step (j = done + 1), between steps j and j + 1:
+    // s = min(j, n - 1 - j). Ramping down, also look ahead by the steps of the coming tick.
+    uint32_t ahead = 2 + (pf.v >> 16) / PROFILE_TICK_HZ;
+    uint32_t from_end = left > ahead ? left - ahead : 0;
+    uint32_t d = done + 1 < from_end ? done + 1 : from_end;
+    if (d >= pf.ramp_steps) {
+      v = pf.vc;
+    } else {
+      v = isqrt32(pf.v0sq4 + pf.a8 * d) << 15;  // isqrt gives 2v in steps/s; 16.16 is v << 16
+      if (v > pf.vc) v = pf.vc;
+      if (v < pf.v0) v = pf.v0;
+    }
   }
+  if (v == pf.v) return;  // cruising: the interval stands (saves the division)
   pf.v = v;
   uint32_t iv = interval_of(v);
   s = hal_irq_save();
@@ -372,8 +406,8 @@ static void ramp(void) {
   hal_irq_restore(s);
 }
 
-// Time budget: ~100 cycles plus one 32-bit division (~600 cycles) while a move runs, 1000 times a second (~4% of
-// the CPU); the step interrupt preempts it on the AVR.
+// Time budget: while the velocity changes, an integer square root and a 32-bit division (~1000 cycles); cruising
+// or idle, ~100 cycles. At 1 kHz that is under 7% of the CPU, and the step interrupt preempts it on the AVR.
 void st_profile_isr(void) {
   uint8_t limits = hal_limit_inputs();
   uint8_t seen = st.estop_seen;  // an 8-bit read is atomic; the step ISR only ever sets it

@@ -78,7 +78,7 @@ class Board:
             expect(time.monotonic() < end, f"timed out after {timeout} s waiting for {what}; last STATUS {brief(s)}")
             time.sleep(POLL_S)
 
-    def wait_idle(self, timeout=5.0):
+    def wait_idle(self, timeout=10.0):  # generous: a simulator on a busy host can run well below real time
         return self.wait(lambda s: s["state"] == State.IDLE and s["queue_free"] == self.queue_size,
                          timeout, "IDLE with an empty queue")
 

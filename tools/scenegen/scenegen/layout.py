@@ -35,6 +35,13 @@ def _segments_cross(p1, q1, p2, q2):
     return bool(np.any((o1 * o2 < 0) & (o3 * o4 < 0)))
 
 
+def boxes_apart(pa, pb, distance):
+    """True when the bounding boxes alone show the polygons are at least `distance` apart (a cheap pre-check)."""
+    dx = max(pb[:, 0].min() - pa[:, 0].max(), pa[:, 0].min() - pb[:, 0].max(), 0.0)
+    dy = max(pb[:, 1].min() - pa[:, 1].max(), pa[:, 1].min() - pb[:, 1].max(), 0.0)
+    return (dx * dx + dy * dy) ** 0.5 >= distance
+
+
 def gap(pa, pb):
     """Distance between two polygons' boundaries; negative (-1) when they overlap."""
     qa, qb = np.roll(pa, -1, axis=0), np.roll(pb, -1, axis=0)

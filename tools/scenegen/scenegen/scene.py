@@ -40,7 +40,8 @@ def _layout(rng, spec, names):
     W, H, s = spec.width, spec.height, spec.px_per_cm
 
     def clear_of_others(poly, skip=()):
-        return all(k in skip or layout.gap(poly, o[3]) >= spec.min_gap_px for k, o in enumerate(objs))
+        return all(k in skip or layout.boxes_apart(poly, o[3], spec.min_gap_px) or
+                   layout.gap(poly, o[3]) >= spec.min_gap_px for k, o in enumerate(objs))
 
     i = 0
     while i < len(names):
@@ -240,11 +241,11 @@ def generate(out_dir, count, seed, spec=None, empty=0, jobs=1):
     return [_one(w) for w in work]
 
 
-def teach_image(name, px_per_cm=40.0, angle=None, seed=0, size=(320, 240)):
+def teach_image(name, px_per_cm=40.0, angle=None, seed=0, size=(480, 360), noise=1.5):
     """One object of class `name` on a plain light table, dark, lightly blurred and noisy (a taught object)."""
     rng = np.random.default_rng([seed, shapes.class_names().index(name)])
     spec = SceneSpec(width=size[0], height=size[1], px_per_cm=px_per_cm, p_shadow=0, blur=(0.7, 0.7),
-                     noise=(1.5, 1.5), light_strength=(0.03, 0.03))
+                     noise=(noise, noise), light_strength=(0.03, 0.03))
     angle = float(rng.uniform(-180, 180)) if angle is None else angle
     centre = np.array([size[0] / 2 + rng.uniform(-3, 3), size[1] / 2 + rng.uniform(-3, 3)])
     poly = _placed(name, px_per_cm, angle, centre)

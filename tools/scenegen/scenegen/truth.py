@@ -106,23 +106,27 @@ def grip_chord(poly, centre=None):
     """The minimum over directions of the chord through the centre (default: the area centroid) between the
     outermost boundary crossings. Returns dict(opening, angle_deg, p1, p2); p1 -> p2 is the closing direction."""
     c = area_centroid(poly) if centre is None else np.asarray(centre, float)
-    coarse = np.arange(3600) * math.pi / 3600           # 0.05 degree steps over [0, pi)
+    coarse = np.arange(1440) * math.pi / 1440           # 0.125 degree steps over [0, pi)
     tmin, tmax = chords(poly, c, coarse)
     length = tmax - tmin
     best = np.nanmin(length)
-    # Refine around each coarse local minimum near the best (several local minima can be close).
+    # Refine around each coarse local minimum near the best (several local minima can be close), in two
+    # stages: +-0.15 deg in 0.0025 deg steps, then +-0.003 deg in 0.0001 deg steps.
     prev, nxt = np.roll(length, 1), np.roll(length, -1)
     local = (length <= prev) & (length <= nxt) & (length <= best * 1.01 + 1e-12)
     candidates = np.flatnonzero(local)
     candidates = candidates[np.argsort(length[candidates])[:8]]
     best_phi, best_len = None, math.inf
     for k in candidates:
-        fine = coarse[k] + np.linspace(-math.radians(0.06), math.radians(0.06), 241)
-        a, b = chords(poly, c, fine)
-        L = b - a
-        j = int(np.nanargmin(L))
+        phi = coarse[k]
+        for half, n in ((math.radians(0.15), 121), (math.radians(0.003), 61)):
+            fine = phi + np.linspace(-half, half, n)
+            a, b = chords(poly, c, fine)
+            L = b - a
+            j = int(np.nanargmin(L))
+            phi = float(fine[j])
         if L[j] < best_len:
-            best_len, best_phi = float(L[j]), float(fine[j])
+            best_len, best_phi = float(L[j]), phi
     a, b = chords(poly, c, np.array([best_phi]))
     u = np.array([math.cos(best_phi), math.sin(best_phi)])
     return {"opening": best_len, "angle_deg": fold_axis_deg(math.degrees(best_phi)),

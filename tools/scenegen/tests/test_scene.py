@@ -121,10 +121,10 @@ def test_polarity_and_tables_vary():
 def test_teach_image_has_one_centred_object(tmp_path):
     for name in shapes.class_names():
         image, background, doc = scene.teach_image(name)
-        assert image.shape == (240, 320, 3)
+        assert image.shape == (360, 480, 3)
         assert len(doc["objects"]) == 1 and doc["objects"][0]["class"] == name
         c = doc["objects"][0]["centroid_px"]
-        assert abs(c[0] - 160) < 4 and abs(c[1] - 120) < 4
+        assert abs(c[0] - 240) < 4 and abs(c[1] - 180) < 4
         assert doc["polarity"] == "dark" and doc["table"]["kind"] == "uniform"
 
 
@@ -135,3 +135,13 @@ def test_written_truth_names_its_images(tmp_path):
         back = json.load(f)
     assert back["scene"] == "star.png" and back["background"] == "star.bg.png" == out["background"]
     assert np.array_equal(cv2.imread(str(tmp_path / "star.png")), image)
+
+
+def test_box_precheck_never_contradicts_the_exact_gap():
+    rng = np.random.default_rng(11)
+    names = shapes.class_names()
+    for _ in range(200):
+        a = shapes.place(shapes.polygon_cm(str(rng.choice(names))), 40, rng.uniform(-180, 180), rng.uniform(0, 300, 2))
+        b = shapes.place(shapes.polygon_cm(str(rng.choice(names))), 40, rng.uniform(-180, 180), rng.uniform(0, 300, 2))
+        if layout.boxes_apart(a, b, 14.0):
+            assert layout.gap(a, b) >= 14.0

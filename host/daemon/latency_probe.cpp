@@ -1,0 +1,114 @@
+// latency_probe.cpp - bench helper for tools/bench/daemon-latency: runs the daemon's Machine in-process with a
+// simulated e-stop line, injects e-stop edges and prints their CLOCK_MONOTONIC times; measures a bare link round
+// trip (STATUS) first as the baseline. The bench script timestamps the frames on the wire (tests/e2e/ptyproxy.py).
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <thread>
+
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include "control_client.hpp"
+#include "daemon_setup.hpp"
+#include "machine.hpp"
+
+using namespace rbx1;
+
+namespace {
+// One request through Machine::handle, its reply read from a socketpair until the final line.
+nlohmann::json call(daemon::Machine& m, daemon::Command c) {
+  int sv[2];
+  if (socketpair(AF_UNIX, SOCK_STREAM, 0, sv) < 0) return nullptr;
+  auto fd = std::shared_ptr<int>(new int(sv[0]), [](int* p) { ::close(*p); delete p; });
+  daemon::Request r;
+  r.command = c;
+  m.handle(r, std::make_shared<daemon::Reply>(fd, c));
+  std::string buf;
+  char chunk[4096];
+  for (;;) {
+    size_t nl;
+    while ((nl = buf.find('\n')) != std::string::npos) {
+      auto j = nlohmann::json::parse(buf.substr(0, nl), nullptr, false);
+      buf.erase(0, nl + 1);
+      if (control::is_final(j)) {
+        ::close(sv[1]);
+        return j;
+      }
+    }
+    ssize_t n = ::read(sv[1], chunk, sizeof chunk);
+    if (n <= 0) break;
+    buf.append(chunk, size_t(n));
+  }
+  ::close(sv[1]);
+  return nullptr;
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"rbx1d-latency-probe: e-stop edge -> ESTOP frame, and the bare link round trip"};
+  std::string config_file, port;
+  int count = 30, baseline = 50;
+  app.add_option("--config", config_file)->required();
+  app.add_option("--port", port)->required();
+  app.add_option("--count", count, "e-stop edges");
+  app.add_option("--baseline", baseline, "bare STATUS round trips");
+  CLI11_PARSE(app, argc, argv);
+  spdlog::set_level(spdlog::level::warn);
+
+  daemon::Config config;
+  config::Errors errors;
+  daemon::Overrides o;
+  o.port = port;
+  if (!daemon::load_config(config_file, o, config, errors)) {
+    std::fprintf(stderr, "%s\n", errors.joined().c_str());
+    return 2;
+  }
+  std::string error;
+  {  // Baseline: the bare link, one STATUS request and its response.
+    link::Link l;
+    if (l.open(config.link, error) < 0) {
+      std::fprintf(stderr, "%s\n", error.c_str());
+      return 1;
+    }
+    nlohmann::json rtts = nlohmann::json::array();
+    for (int i = 0; i < baseline; ++i) {
+      rbx1_status_resp st{};
+      int64_t t0 = gpio::monotonic_ns();
+      if (l.status(st) < 0) return 1;
+      rtts.push_back(gpio::monotonic_ns() - t0);
+    }
+    std::printf("%s\n", nlohmann::json{{"baseline_rtt_ns", rtts}}.dump().c_str());
+  }
+  auto source = std::make_unique<gpio::SimEdgeSource>(false);
+  gpio::SimEdgeSource* line = source.get();
+  daemon::Machine machine(config, std::move(source));
+  if (machine.start(error) < 0) {
+    std::fprintf(stderr, "%s\n", error.c_str());
+    return 1;
+  }
+  for (int i = 0; i < 200; ++i) {
+    auto st = call(machine, daemon::Command::Status);
+    if (st.is_object() && st["result"].value("ready", false)) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  for (int i = 0; i < count; ++i) {
+    int64_t t = gpio::monotonic_ns();
+    line->inject(true, t);  // the e-stop pressed
+    std::printf("%s\n", nlohmann::json{{"edge_ns", t}}.dump().c_str());
+    std::fflush(stdout);
+    std::this_thread::sleep_for(std::chrono::milliseconds(60));
+    line->inject(false);  // released (after the debounce window)
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    auto r = call(machine, daemon::Command::ClearFault);
+    if (!r.is_object() || !r.contains("result")) {
+      std::fprintf(stderr, "clear_fault failed: %s\n", r.dump().c_str());
+      return 1;
+    }
+  }
+  machine.stop();
+  return 0;
+}
