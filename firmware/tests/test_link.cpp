@@ -104,7 +104,7 @@ TEST_F(Fw, GarbageIsIgnoredAndAFrameInsideItIsFound) {
   EXPECT_EQ(status().position[1], 300);
 }
 
-TEST_F(Fw, UnknownTypeAndWrongLengthAreNaked) {
+TEST_F(Fw, UnknownTypeIsNakedAndWrongLengthAnswered) {
   ready();
   Reply r = request(0x55, nullptr, 0);
   ASSERT_TRUE(r.got);
@@ -113,7 +113,8 @@ TEST_F(Fw, UnknownTypeAndWrongLengthAreNaked) {
   std::vector<uint8_t> p = move_payload({100, 0, 0, 0, 0, 0});
   r = request(RBX1_MSG_MOVE, p.data(), (uint8_t)(p.size() - 1));
   ASSERT_TRUE(r.got);
-  EXPECT_EQ(r.type, RBX1_MSG_NAK);
+  EXPECT_EQ(r.type, RBX1_RESPONSE(RBX1_MSG_MOVE));
+  EXPECT_EQ(r.payload.size(), (size_t)RBX1_MOVE_RESP_LEN);
   EXPECT_EQ(r.payload[0], RBX1_BAD_LENGTH);
   run_ms(20);
   EXPECT_EQ(status().queue_free, 16);

@@ -98,6 +98,13 @@ void FakePeer::handle(const rbx1_frame& f) {
     respond(f.seq, RBX1_MSG_NAK, p, n, false);
     return;
   }
+  if (rbx1_request_len(f.type) < 0) {  // as the firmware: an unknown type is NAKed, not executed
+    rbx1_nak nak{RBX1_UNKNOWN_TYPE};
+    uint8_t p[RBX1_NAK_LEN];
+    uint8_t n = rbx1_nak_pack(&nak, p);
+    respond(f.seq, RBX1_MSG_NAK, p, n, false);
+    return;
+  }
   bool corrupt = false;
   if (corrupt_next > 0) {
     --corrupt_next;
@@ -169,10 +176,6 @@ uint8_t FakePeer::execute(const rbx1_frame& f, uint8_t* resp) {
       return rbx1_config_get_resp_pack(&g, resp);
     }
     default:
-      if (rbx1_request_len(f.type) < 0) {
-        resp[0] = RBX1_UNKNOWN_TYPE;
-        return 1;
-      }
       resp[0] = RBX1_OK;
       return 1;
   }

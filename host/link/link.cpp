@@ -227,6 +227,7 @@ void Link::on_frame(void* ctx, const rbx1_frame* f) {
     for (Waiter* w : {self->waiting_, self->estop_waiting_}) {
       if (w && !w->done && w->seq == f->seq) {
         w->nak = true;
+        w->nak_reason = nak.reason;
         spdlog::debug("{}: NAK {} for seq {}", self->name_, rbx1_status_name(nak.reason), f->seq);
       }
     }
@@ -308,6 +309,10 @@ int Link::transact(Waiter*& slot, Waiter& w, const uint8_t* frame, size_t n, uin
     }
     if (!connected_) {
       result = down_error();
+      break;
+    }
+    if (w.nak && w.nak_reason == RBX1_UNKNOWN_TYPE) {
+      result = -EOPNOTSUPP;
       break;
     }
     if (!w.nak) counters_.timeouts++;

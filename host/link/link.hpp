@@ -44,7 +44,8 @@ struct LinkStats {
 // every incoming byte and hands responses to the waiting caller.
 // All int-returning calls give 0 when a response arrived (its status is the typed struct's first field) or a
 // negative errno: -ETIMEDOUT link down after all retransmissions, -ENODEV/-EIO port gone (reconnect() then),
-// -ENOTCONN not open, -EPROTO protocol version mismatch, -EBADMSG response of the wrong length.
+// -ENOTCONN not open, -EPROTO protocol version mismatch, -EBADMSG response of the wrong length,
+// -EOPNOTSUPP the firmware does not know the message type (NAK UNKNOWN_TYPE: resending cannot help).
 class Link {
  public:
   Link();
@@ -110,6 +111,7 @@ class Link {
   struct Waiter {  // one outstanding request awaiting its response
     uint8_t seq = 0, type = 0;
     bool done = false, nak = false;
+    uint8_t nak_reason = 0;
     uint8_t len = 0;
     uint8_t payload[RBX1_MAX_PAYLOAD];
   };

@@ -143,6 +143,17 @@ TEST_F(LinkTest, RetransmitsAtOnceOnNak) {
   EXPECT_EQ(delta().timeouts, 0u);
 }
 
+TEST_F(LinkTest, UnknownTypeIsNotRetransmitted) {
+  uint8_t resp[RBX1_MAX_PAYLOAD];
+  uint8_t len = 0;
+  EXPECT_EQ(link.request(0x33, nullptr, 0, resp, len), -EOPNOTSUPP);
+  EXPECT_EQ(delta().naks, 1u);
+  EXPECT_EQ(delta().retransmissions, 0u);
+  EXPECT_EQ(delta().link_down, 0u);
+  rbx1_status_resp s{};
+  EXPECT_EQ(link.status(s), 0);  // the link is fine
+}
+
 TEST_F(LinkTest, CorruptResponseIsRetransmittedNotReExecuted) {
   peer.corrupt_next = 1;
   rbx1_move_resp r{};
@@ -253,6 +264,30 @@ TEST_F(LinkTest, HeartbeatOnlyWhenIdle) {
   EXPECT_GE(ms_since(t0), 140);  // three more at >= 50 ms spacing
   std::this_thread::sleep_for(milliseconds(120));
   EXPECT_EQ(peer.executed(RBX1_MSG_HEARTBEAT), n);
+}
+
+// The device vanishes while a request waits for its answer: the caller hears at once, not after 6 timeouts.
+TEST(Link, VanishingDeviceEndsAnOutstandingRequest) {
+  auto peer = std::make_unique<FakePeer>();
+  Link link;
+  std::string error;
+  ASSERT_EQ(link.open(peer->slave_path(), 115200, error), 0) << error;
+  peer->drop_next = 1000;
+  std::thread unplug([&] {
+    std::this_thread::sleep_for(milliseconds(150));
+    peer->hang_up();
+  });
+  auto t0 = steady_clock::now();
+  rbx1_move_resp r{};
+  int rc = link.move(some_move(1), r);
+  int64_t took = ms_since(t0);
+  unplug.join();
+  EXPECT_TRUE(rc == -ENODEV || rc == -EIO) << rc;
+  EXPECT_GE(took, 140);
+  EXPECT_LT(took, 500);  // the 600 ms of retransmissions were not waited out
+  EXPECT_FALSE(link.connected());
+  EXPECT_EQ(link.stats().link_down, 0u);
+  EXPECT_EQ(link.estop(), rc);  // every call now says the port is gone
 }
 
 // Any fd (here the pty opened by the test itself): no termios changes by the Link, and no reopening.

@@ -6,6 +6,7 @@
 
 extern "C" {
 #include "avr_ioport.h"
+#include "avr_uart.h"
 #include "sim_interrupts.h"
 #include "sim_io.h"
 }
@@ -40,6 +41,8 @@ void Probes::attach(avr_t* avr, int isr_vector) {
     avr_irq_register_notify(pin_irq(avr, kJoints[j].en), &Probes::on_enable, en);
     enable_level_[j] = !kEnableActive;  // drivers off until the firmware drives EN
   }
+  avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT), &Probes::on_uart_in, this);
+  avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT), &Probes::on_uart_out, this);
   // Every vector's "running" IRQ goes to 1 when the core jumps to it and to 0 at its RETI.
   for (int i = 0; i < avr->interrupts.vector_count; i++) {
     avr_int_vector_t* v = avr->interrupts.vector[i];
@@ -49,6 +52,31 @@ void Probes::attach(avr_t* avr, int isr_vector) {
 }
 
 void Probes::on_reset() { running_.clear(); }
+
+void Probes::on_uart_in(avr_irq_t*, uint32_t, void* param) {
+  auto* p = static_cast<Probes*>(param);
+  if (p->in_request_ && !p->answered_) return;  // more bytes of the same request
+  p->close_exchange();
+  p->in_request_ = true;
+  p->answered_ = false;
+  p->request_start_ = p->avr_->cycle;
+}
+
+void Probes::on_uart_out(avr_irq_t*, uint32_t, void* param) {
+  auto* p = static_cast<Probes*>(param);
+  if (!p->in_request_) return;  // unsolicited output
+  p->answered_ = true;
+  p->last_out_ = p->avr_->cycle;
+}
+
+void Probes::close_exchange() {
+  if (in_request_ && answered_) {
+    exchanges_++;
+    exchange_total_ += last_out_ - request_start_;
+  }
+  in_request_ = false;
+  answered_ = false;
+}
 
 void Probes::on_step(avr_irq_t*, uint32_t value, void* param) {
   auto* h = static_cast<Hook*>(param);
@@ -152,6 +180,7 @@ nlohmann::json Probes::to_json() const {
   // Close the open e-stop event on a copy: to_json may be asked for while the board still runs.
   Probes copy = *this;
   copy.finish_estop_event();
+  copy.close_exchange();
   nlohmann::json j;
   j["steps"] = steps_;
   j["pulses"] = pulses_;
@@ -183,6 +212,9 @@ nlohmann::json Probes::to_json() const {
   j["estop_events"] = copy.estop_events_;
   j["first_pulse_cycle"] = any_pulse_ ? nlohmann::json(first_pulse_cycle_) : nlohmann::json(nullptr);
   j["last_pulse_cycle"] = any_pulse_ ? nlohmann::json(last_pulse_cycle_) : nlohmann::json(nullptr);
+  j["uart"] = {{"exchanges", copy.exchanges_},
+               {"mean_exchange_cycles",
+                copy.exchanges_ ? static_cast<double>(copy.exchange_total_) / copy.exchanges_ : 0.0}};
   j["window_first_pulse_cycle"] = window_any_ ? nlohmann::json(window_first_) : nlohmann::json(nullptr);
   j["cycles"] = avr_ ? avr_->cycle : 0;
   return j;

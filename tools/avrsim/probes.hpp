@@ -28,7 +28,12 @@ class Probes {
   // The board was reset: no interrupt is running any more.
   void on_reset();
   // A measurement window starts: window_first_pulse_cycle is the first pulse after this.
-  void start_window() { window_any_ = false; }
+  void start_window() {
+    window_any_ = false;
+    exchanges_ = 0;
+    exchange_total_ = 0;
+    in_request_ = false;  // an exchange in flight belongs to the previous window
+  }
   // The e-stop input was just asserted (at the current cycle).
   void on_estop_edge();
   // The e-stop input was released: later pulses belong to new motion, not to the stop.
@@ -40,6 +45,9 @@ class Probes {
   static void on_step(avr_irq_t* irq, uint32_t value, void* param);
   static void on_enable(avr_irq_t* irq, uint32_t value, void* param);
   static void on_vector(avr_irq_t* irq, uint32_t value, void* param);
+  static void on_uart_in(avr_irq_t* irq, uint32_t value, void* param);
+  static void on_uart_out(avr_irq_t* irq, uint32_t value, void* param);
+  void close_exchange();
   void step_edge(int joint, uint32_t value);
   void finish_estop_event();
 
@@ -59,6 +67,11 @@ class Probes {
   std::array<VectorStats, 64> vectors_{};
 
   // e-stop: cycles from the input edge to the last STEP pulse after it, worst over edges met while moving.
+  // UART0 exchanges: first byte of a request into the UART to the last response byte written to UDR0.
+  bool in_request_ = false, answered_ = false;
+  uint64_t request_start_ = 0, last_out_ = 0;
+  uint64_t exchanges_ = 0, exchange_total_ = 0;
+
   uint64_t first_pulse_cycle_ = 0;
   uint64_t window_first_ = 0;
   bool window_any_ = false;

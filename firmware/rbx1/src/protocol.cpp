@@ -31,14 +31,10 @@ static void on_frame(void *ctx, const rbx1_frame *f) {
     send_nak(f->seq, RBX1_UNKNOWN_TYPE);
     return;
   }
-  if (want != f->len) {
-    send_nak(f->seq, RBX1_BAD_LENGTH);
-    return;
-  }
   safety_request_seen();
   uint8_t type = RBX1_RESPONSE(f->type);
   uint8_t out[RBX1_MAX_PAYLOAD];
-  if (f->type == RBX1_MSG_ESTOP) {  // always executed, never recorded: a retransmitted ESTOP acts again
+  if (f->type == RBX1_MSG_ESTOP && want == f->len) {  // always executed, never recorded: a retransmitted ESTOP acts again
     send(f->seq, type, out, cmd_execute(f, out));
     return;
   }
@@ -48,7 +44,16 @@ static void on_frame(void *ctx, const rbx1_frame *f) {
     send(f->seq, cached_type, cached, cached_len);
     return;
   }
-  uint8_t n = cmd_execute(f, out);
+  uint8_t n;
+  if (want != f->len) {
+    // A known type with a wrong payload length: answered, not NAKed (resending the same bytes cannot help),
+    // with a full-length response whose status is BAD_LENGTH; nothing is executed.
+    n = (uint8_t)rbx1_response_len(f->type);
+    for (uint8_t i = 0; i < n; i++) out[i] = 0;
+    out[0] = RBX1_BAD_LENGTH;
+  } else {
+    n = cmd_execute(f, out);
+  }
   dedup_record(f, type, out, n);
   send(f->seq, type, out, n);
 }

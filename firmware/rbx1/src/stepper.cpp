@@ -387,7 +387,7 @@ static void ramp(void) {
   } else {
     // The interval set now is used after the next step (j = done + 1), between steps j and j + 1:
     // s = min(j, n - 1 - j). Ramping down, also look ahead by the steps of the coming tick.
-    uint32_t ahead = 2 + (pf.v >> 16) / PROFILE_TICK_HZ;
+    uint32_t ahead = 2 + (pf.v >> 26);  // + steps per 1 ms tick (v / 1024: no division on the AVR)
     uint32_t from_end = left > ahead ? left - ahead : 0;
     uint32_t d = done + 1 < from_end ? done + 1 : from_end;
     if (d >= pf.ramp_steps) {
@@ -406,8 +406,8 @@ static void ramp(void) {
   hal_irq_restore(s);
 }
 
-// Time budget: while the velocity changes, an integer square root and a 32-bit division (~1000 cycles); cruising
-// or idle, ~100 cycles. At 1 kHz that is under 7% of the CPU, and the step interrupt preempts it on the AVR.
+// Time budget: while the velocity changes, an integer square root and a 32-bit division (~1300 cycles); cruising
+// or idle, ~100 cycles. At 1 kHz that is under 9% of the CPU, and the step interrupt preempts it on the AVR.
 void st_profile_isr(void) {
   uint8_t limits = hal_limit_inputs();
   uint8_t seen = st.estop_seen;  // an 8-bit read is atomic; the step ISR only ever sets it

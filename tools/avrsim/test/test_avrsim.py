@@ -73,6 +73,15 @@ def test_pty_path_first_and_echo(sim):
     assert sim.pty.startswith("/dev/pts/")
     assert sim.cmd("ping") == "pong"
     assert sim.cmd("bogus") == "err"
+    sim.control("stats /dev/null")  # a new window: the next exchanges only
+    time.sleep(0.05)
+    for _ in range(3):
+        assert sim.cmd("ping") == "pong"
+    uart = sim.quit()["uart"]
+    assert uart["exchanges"] == 3
+    # "ping\n" in, "pong\n" out: 5 bytes received, then 4 more byte times until the 5th UDR0 write, at 10 bits
+    # (8N1) per byte: 1360 cycles at UBRR0 = 16 with U2X0. 11-bit bytes (simavr's own timing) would exceed it.
+    assert 9 * 1360 <= uart["mean_exchange_cycles"] <= 9 * 1360 + 1200, uart
 
 
 def test_step_counts_with_direction_and_isr(sim):

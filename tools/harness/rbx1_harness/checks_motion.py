@@ -26,7 +26,7 @@ def move_exact_targets(b):
         expect(r["status"] == Status.OK, f"MOVE {t}: {r}")
     s = b.status()
     expect(s["state"] == State.MOVING, f"not MOVING with moves queued: {brief(s)}")
-    s = b.wait_idle(timeout=6.0)
+    s = b.wait_idle()
     expect(s["moves_done"] == (before["moves_done"] + 3) & 0xFFFF, f"moves_done {s['moves_done']}: expected +3")
     expect(s["position"] == targets[-1], f"ended at {s['position']}")
     r = b.move([-1234, 0, 77, 0, 0, 1])
@@ -66,7 +66,7 @@ def queue_flow_control(b):
     b.wait(lambda s: s["queue_free"] > 0, 2.0, "room in the queue")
     r = b.move(refused, 150)
     expect(r["status"] == Status.OK, f"the refused MOVE, retried after a move finished: {r}")
-    s = b.wait_idle(timeout=3 + 0.2 * accepted)
+    s = b.wait_idle(timeout=10 + 0.2 * accepted)
     expect(s["moves_done"] == (before["moves_done"] + accepted + 1) & 0xFFFF, f"moves_done {s['moves_done']}")
     expect(s["position"][0] == refused[0], f"ended at {s['position']}, expected {refused[0]}")
 
@@ -91,7 +91,7 @@ def stop_controlled(b):
     start_long_move(b)
     b.move([2000, 100, 0, 0, 0, 0])  # a second entry, flushed by STOP
     b.ok(MsgType.STOP)
-    s = b.wait_idle(timeout=2.0)
+    s = b.wait_idle()
     expect(0 < s["position"][0] < LONG[0], f"STOP did not stop the move: {brief(s)}")
     expect(s["position"][1] == 0, "the queued entry ran after STOP")
     expect(latching(s["faults"]) == 0, f"STOP latched a fault: {brief(s)}")
