@@ -2,6 +2,7 @@
 // clear errors, and a real V4L2 device when one exists.
 #include <filesystem>
 #include <fstream>
+#include <pty.h>
 #include <unistd.h>
 
 #include <opencv2/imgcodecs.hpp>
@@ -158,8 +159,13 @@ TEST(V4L2, MissingOrWrongDeviceIsAClearError) {
   std::string error;
   EXPECT_EQ(open_source(CameraConfig{"/dev/video97"}, error), nullptr);
   EXPECT_EQ(error, "/dev/video97: No such file or directory");
-  EXPECT_EQ(open_source(CameraConfig{"/dev/null"}, error), nullptr);
-  EXPECT_EQ(error.rfind("/dev/null: not a V4L2 device", 0), 0u) << error;
+  int master, slave;  // a character device that is not a camera: a pty
+  char name[128];
+  ASSERT_EQ(openpty(&master, &slave, name, nullptr, nullptr), 0);
+  EXPECT_EQ(open_source(CameraConfig{name}, error), nullptr);
+  EXPECT_EQ(error.rfind(std::string(name) + ": not a V4L2 device", 0), 0u) << error;
+  ::close(slave);
+  ::close(master);
 }
 
 TEST(V4L2, RealDeviceWhenPresent) {

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include <CLI/CLI.hpp>
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include "control_client.hpp"
@@ -57,6 +58,7 @@ int main(int argc, char** argv) {
   app.add_option("--count", count, "e-stop edges");
   app.add_option("--baseline", baseline, "bare STATUS round trips");
   CLI11_PARSE(app, argc, argv);
+  spdlog::set_default_logger(spdlog::stderr_color_mt("probe"));  // stdout carries the JSON lines
   spdlog::set_level(spdlog::level::warn);
 
   daemon::Config config;

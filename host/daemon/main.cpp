@@ -4,6 +4,7 @@
 #include <cstdlib>
 
 #include <CLI/CLI.hpp>
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include "daemon_setup.hpp"
@@ -45,6 +46,7 @@ int main(int argc, char** argv) {
     std::printf("OK\n");
     return 0;
   }
+  spdlog::set_default_logger(spdlog::stderr_color_mt("rbx1d"));  // stdout stays free; journald reads stderr
   spdlog::set_level(spdlog::level::from_str(config.daemon.log_level));
   spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
 

@@ -167,12 +167,15 @@ MotionResult Motion::run(const std::vector<MotionStep>& steps, const MotionHooks
         queue_free = 0;
         break;
       }
-      if (status != RBX1_OK) {
-        if (status == RBX1_FAULT_ACTIVE && read_status() == 0 && (st.faults & (RBX1_FAULT_ESTOP_INPUT | RBX1_FAULT_ESTOP_COMMAND)))
-          return fail("estop", "e-stop active: step " + s.name + " refused");
+      if (status == RBX1_FAULT_ACTIVE) {
+        // A fault latched since the last STATUS: the loop below decides (e-stop ends the job, a lost
+        // heartbeat is recovered, anything else fails it with the fault's name).
+        queue_free = 0;
+        break;
+      }
+      if (status != RBX1_OK)
         return fail("rejected", "firmware refused step " + std::to_string(sent + 1) + " (" + s.name + "): " +
                                     rbx1_status_name(status));
-      }
       hooks.emit("sent", step_json(s, sent));
       if (hooks.on_sent) hooks.on_sent(sent);
       ++sent;

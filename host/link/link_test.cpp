@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <gtest/gtest.h>
+#include <spdlog/spdlog.h>
 
 #include "fake_peer.hpp"
 #include "serial_port.hpp"
@@ -17,6 +18,12 @@ using rbx1::link::Link;
 using rbx1::link::test::FakePeer;
 
 namespace {
+
+// RBX1_LOG_DEBUG=1 shows the link's retransmissions and NAKs while a test runs.
+const bool debug_logging = [] {
+  if (getenv("RBX1_LOG_DEBUG")) spdlog::set_level(spdlog::level::debug);
+  return true;
+}();
 
 int64_t ms_since(steady_clock::time_point t0) {
   return duration_cast<milliseconds>(steady_clock::now() - t0).count();
@@ -270,6 +277,7 @@ TEST_F(LinkTest, HeartbeatOnlyWhenIdle) {
 TEST(Link, VanishingDeviceEndsAnOutstandingRequest) {
   auto peer = std::make_unique<FakePeer>();
   Link link;
+  link.set_timing(1000, 5);
   std::string error;
   ASSERT_EQ(link.open(peer->slave_path(), 115200, error), 0) << error;
   peer->drop_next = 1000;
@@ -284,7 +292,7 @@ TEST(Link, VanishingDeviceEndsAnOutstandingRequest) {
   unplug.join();
   EXPECT_TRUE(rc == -ENODEV || rc == -EIO) << rc;
   EXPECT_GE(took, 140);
-  EXPECT_LT(took, 500);  // the 600 ms of retransmissions were not waited out
+  EXPECT_LT(took, 900);  // the 6 x 1000 ms of retransmissions were not waited out
   EXPECT_FALSE(link.connected());
   EXPECT_EQ(link.stats().link_down, 0u);
   EXPECT_EQ(link.estop(), rc);  // every call now says the port is gone
@@ -314,7 +322,7 @@ TEST(Link, HandshakeWaitsForABootingBoard) {
   std::string error;
   ASSERT_EQ(link.open(peer.slave_path(), 115200, error), 0) << error;
   EXPECT_EQ(peer.executed(RBX1_MSG_HELLO), 1);
-  EXPECT_EQ(link.stats().link_down, 1u);
+  EXPECT_GE(link.stats().link_down, 1u);  // the first HELLO exchange went unanswered
 }
 
 TEST(Link, VersionMismatchIsAClearError) {
@@ -363,6 +371,7 @@ TEST(Link, ReconnectsWhenThePortReturns) {
   auto a = std::make_unique<FakePeer>();
   std::filesystem::create_symlink(a->slave_path(), port);
   Link link;
+  link.set_timing(1000, 5);  // a loaded machine must not turn one HELLO into two (the SEQ checks below)
   std::string error;
   ASSERT_EQ(link.open(port, 250000, error), 0) << error;
   rbx1_move_resp mr{};

@@ -81,6 +81,17 @@ bool measure_geometry(const Layer& layer, Geometry& out) {
     const EdgePoint& c2 = out.contour[(i + 1) % n];
     out.contour[i].w = 0.5 * (std::hypot(b.x - a.x, b.y - a.y) + std::hypot(c2.x - b.x, c2.y - b.y));
   }
+  // Centroid of the region inside the sub-pixel contour (Green's theorem): the contour sits at the object's
+  // half level, where a soft shadow or uneven table next to one side barely moves it, whereas the soft
+  // layer's edge band would lean towards the shadow. The layer's moments remain the fallback.
+  double a2 = 0, cx = 0, cy = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const EdgePoint& p = out.contour[i];
+    const EdgePoint& q = out.contour[(i + 1) % n];
+    double cr = p.x * q.y - q.x * p.y;
+    a2 += cr, cx += (p.x + q.x) * cr, cy += (p.y + q.y) * cr;
+  }
+  if (std::abs(a2) / 2 >= 0.5 * out.area_px) out.centroid = {cx / (3 * a2), cy / (3 * a2)};
   // r-theta profile (Eq. 3-4) around the centroid, sorted by angle in [0, 2pi).
   std::vector<std::pair<double, double>> tr(n);
   for (size_t i = 0; i < n; ++i) {

@@ -12,19 +12,17 @@ namespace {
 // Soft layer of one component in one fused pass: s = (c - lo) / (hi - lo) clamped, with lo = 2 sigma and
 // hi = level - 2 sigma around the object's contrast level (median over its pixels), so noise leaves the
 // interior at 1 and the table at 0 while the anti-aliased edge keeps its covered fraction (half level =
-// level / 2). Pixels of other objects, or farther than 2 px from the component, are 0.
+// level / 2). Pixels of other objects are 0.
 void make_layer(const Contrast& con, const cv::Mat& labels, int label, cv::Rect roi, double threshold, Layer& layer) {
   cv::Mat lab = labels(roi), d = con.diff(roi);
-  cv::Mat comp = lab == label, near;
-  cv::dilate(comp, near, cv::Mat(), cv::Point(-1, -1), 2);
   const int sign = con.sign;
   // Median contrast over the component (a histogram: contrast is an integer within +-255).
   int hist[512] = {0}, n = 0;
   for (int y = 0; y < roi.height; ++y) {
     const int16_t* dr = d.ptr<int16_t>(y);
-    const uchar* m = comp.ptr<uchar>(y);
+    const int* lr = lab.ptr<int>(y);
     for (int x = 0; x < roi.width; ++x)
-      if (m[x]) hist[std::clamp(sign * dr[x] + 256, 0, 511)]++, ++n;
+      if (lr[x] == label) hist[std::clamp(sign * dr[x] + 256, 0, 511)]++, ++n;
   }
   int acc = 0, med = 0;
   for (int i = 0; i < 512; ++i)
@@ -35,20 +33,25 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, cv::Rect 
   const double level = std::max<double>(med, threshold);
   const double lo = std::min(2 * con.noise_sigma, level * 0.25), hi = std::max(level - 2 * con.noise_sigma, level * 0.75);
   const float a = float(1.0 / (hi - lo)), b = float(-lo / (hi - lo)), half = float(level / 2);
-  layer.soft.create(roi.size(), CV_32F);
+  // The object at its half level, then the soft edge within 2 px of it: a shadow or glare joined to the
+  // object at the low threshold, but fainter than half its contrast, stays out of the moments.
   layer.inside.create(roi.size(), CV_8U);
+  for (int y = 0; y < roi.height; ++y) {
+    const int16_t* dr = d.ptr<int16_t>(y);
+    const int* lr = lab.ptr<int>(y);
+    uchar* ir = layer.inside.ptr<uchar>(y);
+    for (int x = 0; x < roi.width; ++x) ir[x] = lr[x] == label && sign * dr[x] > half ? 255 : 0;
+  }
+  cv::Mat near;
+  cv::dilate(layer.inside, near, cv::Mat(), cv::Point(-1, -1), 2);
+  layer.soft.create(roi.size(), CV_32F);
   for (int y = 0; y < roi.height; ++y) {
     const int16_t* dr = d.ptr<int16_t>(y);
     const int* lr = lab.ptr<int>(y);
     const uchar* nr = near.ptr<uchar>(y);
     float* sr = layer.soft.ptr<float>(y);
-    uchar* ir = layer.inside.ptr<uchar>(y);
-    for (int x = 0; x < roi.width; ++x) {
-      bool mine = nr[x] && (lr[x] == label || lr[x] == 0);
-      float c = float(sign * dr[x]);
-      sr[x] = mine ? std::clamp(c * a + b, 0.f, 1.f) : 0.f;
-      ir[x] = mine && c > half ? 255 : 0;
-    }
+    for (int x = 0; x < roi.width; ++x)
+      sr[x] = nr[x] && (lr[x] == label || lr[x] == 0) ? std::clamp(float(sign * dr[x]) * a + b, 0.f, 1.f) : 0.f;
   }
   layer.roi = roi;
   layer.label = label;

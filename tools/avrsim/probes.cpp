@@ -1,5 +1,5 @@
 // probes.cpp - STEP/DIR counting from pin-change IRQs, interrupt timing from simavr's vector "running" IRQs,
-// and e-stop latency.
+// e-stop latency, and UART0 request/response exchange times.
 #include "probes.hpp"
 
 #include <algorithm>

@@ -1,5 +1,5 @@
 // probes.hpp - what rbx1-avrsim measures on the simulated board: STEP pulses with DIR per joint, interrupt
-// durations per vector (the step ISR among them), and the e-stop latency.
+// durations per vector (the step ISR among them), the e-stop latency, and UART0 exchange times.
 #pragma once
 
 #include <array>

@@ -130,6 +130,33 @@ TEST(Isolation, NoPhantomsOnEmptyNoisyScenes) {
   }
 }
 
+TEST(Isolation, SoftShadowDoesNotPullTheCentroid) {
+  // A soft shadow (35 grey levels, offset 7 px) joined to a dark bar: above the noise threshold, below half
+  // the bar's contrast.
+  Poly bar = rectangle({320, 240}, 140, 50, 20);
+  Poly shadow = rectangle({327, 247}, 140, 50, 20);
+  Scene sh;
+  sh.object = 165, sh.blur_sigma = 4;
+  cv::Mat base = to_gray8(render(sh, {shadow}));
+  Scene cov;
+  cov.background = 0, cov.object = 255;
+  cv::Mat f = to_gray8(render(cov, {bar}));
+  cv::Mat img(base.size(), CV_8U);
+  cv::RNG rng(5);
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x) {
+      double a = f.at<uchar>(y, x) / 255.0;
+      img.at<uchar>(y, x) = cv::saturate_cast<uchar>(base.at<uchar>(y, x) * (1 - a) + 60 * a + rng.gaussian(3));
+    }
+  Detection d;
+  std::string e;
+  ASSERT_TRUE(detect(img, {}, {}, nullptr, d, e)) << e;
+  ASSERT_EQ(d.objects.size(), 1u);
+  cv::Point2d truth = poly_centroid(bar);
+  EXPECT_LT(cv::norm(d.objects[0].geometry.centroid - truth), 0.3) << d.objects[0].geometry.centroid;
+  EXPECT_NEAR(d.objects[0].grip.opening_px, 50, 1.0);
+}
+
 TEST(Isolation, NearObjectsStaySeparate) {
   Scene s;
   s.noise_sigma = 3, s.blur_sigma = 0.8;

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include "detector.hpp"
 #include "image_io.hpp"
@@ -26,6 +27,10 @@ TEST(WorkedExample, ReproducesSection4) {
   ASSERT_TRUE(detect(to_gray8(img), cv::Mat(), {}, nullptr, det, error)) << error;
   ASSERT_EQ(det.objects.size(), 1u);
   const DetectedObject& o = det.objects[0];
+  std::printf("n = %d, centre (%.3f, %.3f), orientation %.3f deg, axis y = %.4f x + %.3f, grip at %.2f deg from the axis\n",
+              o.geometry.edge_pixels, o.geometry.centroid.x, o.geometry.centroid.y, o.pose.orientation_deg,
+              o.pose.slope.value_or(0), o.pose.intercept.value_or(0),
+              fold_axis_deg(o.grip.angle_deg - o.pose.orientation_deg));
   // 1- the number of edge points: about 918 (within 5%).
   EXPECT_NEAR(o.geometry.edge_pixels, 918, 46);
   // 2- the centre point (157, 145).

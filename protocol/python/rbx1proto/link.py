@@ -32,6 +32,7 @@ class Link:
         self.retransmissions = 0
         self.decoder = frame.Decoder()
         self.rejects = 0  # frames from the firmware that failed CRC/length checks
+        self.clock = time.monotonic  # the timeout's clock (tests replace it)
 
     def close(self):
         self.ser.close()
@@ -65,27 +66,28 @@ class Link:
 
     def _exchange(self, msg_type, seq, wire):
         want = msg_type | RESPONSE_BIT
+        wait = max(self.timeout, SLOW_TIMEOUT) if msg_type in SLOW_TYPES else self.timeout
         for attempt in range(self.retries + 1):
             if attempt:
                 self.retransmissions += 1
+            deadline = self.clock() + wait
             self.ser.write(wire)
             self.ser.flush()
-            wait = max(self.timeout, SLOW_TIMEOUT) if msg_type in SLOW_TYPES else self.timeout
-            deadline = time.monotonic() + wait
             while True:
-                left = deadline - time.monotonic()
+                # Read first, decide after: a process descheduled past the deadline still takes the response
+                # that is already waiting instead of retransmitting (or giving up) needlessly.
+                left = deadline - self.clock()
+                self.ser.timeout = max(left, 0)
+                data = self.ser.read(1) if left > 0 else b""
+                data += self.ser.read(self.ser.in_waiting)
+                if data:
+                    outcome = self._match(self.decoder.feed(data), want, seq)
+                    if outcome == "nak":
+                        break
+                    if outcome is not None:
+                        return outcome
                 if left <= 0:
                     break
-                self.ser.timeout = left
-                first = self.ser.read(1)
-                if not first:
-                    continue
-                data = first + self.ser.read(self.ser.in_waiting)
-                outcome = self._match(self.decoder.feed(data), want, seq)
-                if outcome == "nak":
-                    break
-                if outcome is not None:
-                    return outcome
         raise LinkError(f"{msg_type.name} seq {seq}: no response after {self.retries} retransmissions")
 
     def _match(self, events, want, seq):

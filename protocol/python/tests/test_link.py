@@ -225,3 +225,36 @@ def test_config_reset_waits_longer(pty_pair):
     peer.delay = 0.3  # EEPROM writes: slower than the 50 ms timeout, within the 1 s of CONFIG_*
     assert link.request(MsgType.CONFIG_RESET) == {"status": 0}
     assert link.retransmissions == 0
+
+
+def test_late_wakeup_reads_waiting_response_without_retransmitting(pty_pair):
+    # The process is descheduled right after sending: the peer answers meanwhile, and every time the Link looks at
+    # its clock while that response sits unread, 10 s have passed (far beyond the 50 ms timeout). The response
+    # already waiting must be taken, with no retransmission.
+    link, peer = pty_pair
+    offset = [0.0]
+
+    def clock():
+        if link.ser.in_waiting:
+            offset[0] += 10.0
+        return time.monotonic() + offset[0]
+
+    write = link.ser.write
+
+    def write_then_sleep(data):
+        n = write(data)
+        end = time.monotonic() + 2.0
+        while link.ser.in_waiting == 0 and time.monotonic() < end:
+            time.sleep(0.005)  # "descheduled" until the response has arrived
+        return n
+
+    link.clock = clock
+    link.ser.write = write_then_sleep
+    r = link.request(MsgType.MOVE, **MOVE)
+    assert r == {"status": 0, "queue_free": 15}
+    s = link.request(MsgType.STATUS)
+    assert s["moves_done"] == 1 and s["gripper_us"] == 1001  # the STATUS's own answer (SEQ 1), not a stale one
+    assert offset[0] >= 20.0  # the clock did jump past the deadline before each read
+    assert link.retransmissions == 0
+    time.sleep(0.05)
+    assert len(peer.received) == 2 and peer.duplicates == 0

@@ -33,7 +33,7 @@ class Sim:
             self.ser.write(b"ping\n")
             if self.ser.read_until(b"pong\n").endswith(b"pong\n"):
                 break
-        self.ser.timeout = 2
+        self.ser.timeout = 5  # generous: a busy machine can starve the simulator
 
     def line(self):
         return self.ser.readline().decode().strip()

@@ -71,6 +71,11 @@ def test_pulses_equal_commanded_targets(board):
     s = wait_idle(link)
     assert s["position"] == moves[-1]
     assert s["moves_done"] == 2
+    # The firmware runs its 500 ms watchdog: simavr must model it without spurious resets (a reset would also
+    # have cleared the homed bits and the position).
+    time.sleep(0.7)
+    s = ok(link, MsgType.STATUS)
+    assert not s["faults"] & Fault.WATCHDOG_RESET and s["homed"] == 0x3F, s
     out = finish()
     assert out["steps"] == moves[-1]  # net signed pulses per joint, DIR read on every STEP edge
     assert out["pulses"] == [abs(a) + abs(b - a) for a, b in zip(*moves)]

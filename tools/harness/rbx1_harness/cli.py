@@ -1,7 +1,6 @@
 """cli.py - `tools/rbx1-harness`: runs the conformance suite against --port (a real board or a simulator's pty)
 or against a simulator it starts itself (--sim), and prints PASS/FAIL/SKIP per check and 'N passed, N failed'."""
 import argparse
-import sys
 
 from rbx1proto.link import LinkError
 
@@ -18,6 +17,8 @@ def main(argv=None):
     where.add_argument("--sim", help="start this simulator (build/bin/rbx1-simfw or rbx1-avrsim) and test it")
     ap.add_argument("--control", help="the simulator's control FIFO (e-stop, limits, reset checks need it)")
     ap.add_argument("--baud", type=int, default=115200)
+    ap.add_argument("--timeout", type=float, default=0.3, help="seconds before a retransmission (default 0.3)")
+    ap.add_argument("--retries", type=int, default=10, help="retransmissions before the link is declared down")
     ap.add_argument("--sim-arg", action="append", default=[], help="extra argument for --sim (repeatable)")
     ap.add_argument("-k", action="append", dest="select", help="run only checks whose name contains this")
     ap.add_argument("--list", action="store_true", help="list the checks and exit")
@@ -36,7 +37,7 @@ def main(argv=None):
             args.port, args.control = sim.port, sim.control
             print(f"# {' '.join(sim.args)} -> {sim.port}")
         try:
-            board = Board(args.port, args.baud, args.control)
+            board = Board(args.port, args.baud, args.control, args.timeout, args.retries)
         except (LinkError, OSError, AssertionError) as e:
             print(f"FAIL  connect: {args.port}: {e}")
             print("0 passed, 1 failed")

@@ -1,5 +1,6 @@
 """test_harness.py - the harness itself: its runner counts and reports failures, and its checks catch a device that
-breaks the protocol (a proxy that renumbers every request, so the simulator re-executes retransmissions)."""
+breaks the protocol (proxies that renumber every request, so the simulator re-executes retransmissions, or that
+NAK a request of the wrong length instead of answering it)."""
 import os
 import select
 import subprocess
@@ -12,7 +13,8 @@ import pytest
 SRC = os.environ.get("RBX1_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 sys.path.insert(0, os.path.join(SRC, "protocol", "python"))
 sys.path.insert(0, os.path.join(SRC, "tools", "harness"))
-from rbx1proto import frame  # noqa: E402
+from rbx1proto import frame, messages  # noqa: E402
+from rbx1proto.messages import MsgType, Status  # noqa: E402
 from rbx1_harness import runner  # noqa: E402
 from rbx1_harness.sim import Simulator  # noqa: E402
 
@@ -85,13 +87,26 @@ class RenumberingProxy:
             if self.dev in ready:
                 for f in dev_dec.feed(os.read(self.dev, 4096)):
                     if isinstance(f, frame.Frame):
-                        os.write(self.master, frame.encode(seq_map.get(f.seq, f.seq), f.type, f.payload))
+                        os.write(self.master, self.to_host(seq_map.get(f.seq, f.seq), f))
+
+    def to_host(self, seq, f):
+        return frame.encode(seq, f.type, f.payload)
 
     def close(self):
         self.stop = True
         self.thread.join()
         for fd in (self.dev, self.master, self.slave):
             os.close(fd)
+
+
+class LengthNakProxy(RenumberingProxy):
+    """A device that NAKs a wrong payload length (the firmware's old behaviour) instead of the BAD_LENGTH response
+    PROTOCOL.md asks for. (Renumbering is harmless for the wrong-length check: nothing is retransmitted.)"""
+
+    def to_host(self, seq, f):
+        if f.type & 0x80 and f.payload[:1] == bytes([Status.BAD_LENGTH]):
+            return frame.encode(seq, MsgType.NAK, messages.pack_nak(Status.BAD_LENGTH))
+        return frame.encode(seq, f.type, f.payload)
 
 
 @pytest.fixture
@@ -109,9 +124,9 @@ def harness(*args):
 
 
 def test_duplicate_check_passes_on_simfw(simfw):
-    code, out = harness("--port", simfw.port, "-k", "duplicate", "-k", "handshake")
+    code, out = harness("--port", simfw.port, "-k", "duplicate", "-k", "handshake", "-k", "wrong_length")
     assert code == 0, out
-    assert out.splitlines()[-1] == "2 passed, 0 failed"
+    assert out.splitlines()[-1] == "3 passed, 0 failed"
 
 
 def test_duplicate_check_catches_reexecution(simfw):
@@ -123,4 +138,16 @@ def test_duplicate_check_catches_reexecution(simfw):
     assert code == 1, out
     assert "FAIL  duplicate_not_reexecuted: " in out, out  # a second queue entry shows in its response or moves_done
     assert "PASS  move_exact_targets" in out, out  # the proxy is otherwise transparent
+    assert out.splitlines()[-1] == "1 passed, 1 failed"
+
+
+def test_wrong_length_check_rejects_a_nak(simfw):
+    proxy = LengthNakProxy(simfw.port)
+    try:
+        code, out = harness("--port", proxy.path, "-k", "wrong_length", "-k", "move_exact")
+    finally:
+        proxy.close()
+    assert code == 1, out
+    assert "FAIL  wrong_length_response: STATUS with 1 payload bytes: NAKed" in out, out
+    assert "PASS  move_exact_targets" in out, out
     assert out.splitlines()[-1] == "1 passed, 1 failed"

@@ -34,7 +34,8 @@ def _union_centroid(objs):
 def match_scene(truth, detections):
     """Pairs truth objects with detections (each at most once, nearest centroid first, within MATCH_GATE_PX).
     Touching objects are expected as one merged detection near the centroid of their union.
-    Returns dict(matched=[(obj, det)], missed=[obj], merged=[(objs, det or None)], extra=[det])."""
+    Returns dict(matched=[(obj, det)], missed=[obj], merged=[(objs, det or None)],
+    split=[(objs, [(obj, det)])] for touching groups found as separate objects, extra=[det])."""
     objs = truth["objects"]
     separated = [o for o in objs if not o["touching"]]
     groups, seen = [], set()
@@ -76,6 +77,22 @@ def match_scene(truth, detections):
                 out["matched"].append((item, det))
         else:
             out["merged"].append((item, det))
+    # A touching group not seen as one blob may have been split into its members: match those too.
+    out["split"] = []
+    for gi, (group, det) in enumerate(out["merged"]):
+        if det is not None:
+            continue
+        members = []
+        for o in group:
+            free = [(float(np.hypot(*(np.array(d["centroid_px"]) - o["centroid_px"]))), di)
+                    for di, d in enumerate(dets) if di not in d_used]
+            free = [f for f in free if f[0] <= MATCH_GATE_PX]
+            if free:
+                di = min(free)[1]
+                d_used.add(di)
+                members.append((o, dets[di]))
+        if members:
+            out["split"].append((group, members))
     out["extra"] = [d for di, d in enumerate(dets) if di not in d_used]
     return out
 
@@ -94,7 +111,7 @@ def object_errors(obj, det):
     return e
 
 
-def summarise(records, empty_detections, merged, extra, scenes, empty_scenes):
+def summarise(records, empty_detections, merged, extra, scenes, empty_scenes, split=()):
     """records: one dict per separated truth object {scene, id, class, elongated, aspect, matched, errors...}."""
     matched = [r for r in records if r["matched"]]
     elongated = [r for r in matched if r["elongated"]]
@@ -121,6 +138,7 @@ def summarise(records, empty_detections, merged, extra, scenes, empty_scenes):
         "extra_detections": len(extra),
         "touching_groups": len(merged),
         "touching_merged_detected": sum(1 for _, d in merged if d is not None),
+        "touching_split": sum(1 for g, m in split if len(m) == len(g)),
     }
     per_class = {}
     for c in classes:

@@ -47,7 +47,8 @@ def _layout(rng, spec, names):
     while i < len(names):
         name = names[i]
         pair_kind = None
-        if objs and i + 1 <= len(names):
+        if objs:
+            # About p_touching (p_near) pairs per scene of this size: each later object may join an earlier one.
             r = rng.random()
             if r < spec.p_touching / len(names) * 2:
                 pair_kind = "touching"
@@ -85,7 +86,7 @@ def _layout(rng, spec, names):
             placed = True
             break
         if not placed and pair_kind:
-            continue  # try this object again, unpaired
+            continue  # no room for that pair: draw this object's pairing again
         i += 1
     return objs, near, touching
 

@@ -68,3 +68,11 @@ def test_summary_and_check():
     assert any(f.startswith("phantoms") for f in fails)
     s3 = metrics.summarise(records[:50], [], [], [], 150, 20)
     assert any("150 scenes" in f for f in metrics.check(s3))
+
+
+def test_a_touching_pair_split_into_its_objects_is_not_extra():
+    dets = [det((100, 100)), det((300, 100)), det((200.2, 300)), det((239.9, 300.1))]
+    m = metrics.match_scene(TRUTH, dets)
+    assert m["merged"][0][1] is None
+    assert len(m["split"]) == 1 and [o["id"] for o, _ in m["split"][0][1]] == [2, 3]
+    assert m["extra"] == []
