@@ -98,6 +98,8 @@ void Machine::estop(const std::string& source) {
     std::lock_guard lock(mutex_);
     last_estop_ = source;
     abort_reason_ = "estop";
+    for (auto& job : queue_) job.reply->error("estop", "e-stop (" + source + ") before the job started");
+    queue_.clear();
   }
   abort_ = true;
   cv_.notify_all();
@@ -143,8 +145,11 @@ void Machine::handle(const Request& request, std::shared_ptr<Reply> reply) {
     reply->error("shutting_down", "rbx1d is shutting down");
     return;
   }
-  if (running_ || !queue_.empty()) {
-    reply->error("busy", std::string("a job is running (") + command_name(running_ ? running_->command : queue_.front().request.command) + ")");
+  // A job whose final line went out is over for the client, even if the worker is still tidying up.
+  bool running = running_ && running_reply_ && !running_reply_->finished();
+  if (running || !queue_.empty()) {
+    reply->error("busy", std::string("a job is running (") +
+                             command_name(running ? running_->command : queue_.front().request.command) + ")");
     return;
   }
   queue_.push_back({request, reply});
@@ -288,12 +293,14 @@ void Machine::worker() {
       Job job = std::move(queue_.front());
       queue_.pop_front();
       running_ = job.request;
+      running_reply_ = job.reply;
       abort_ = false;
       abort_reason_ = "aborted";
       lock.unlock();
       run_job(job);
       lock.lock();
       running_.reset();
+      running_reply_.reset();
       continue;
     }
     if (link_.connected()) {

@@ -73,6 +73,7 @@ class Machine {
   std::condition_variable cv_;
   std::deque<Job> queue_;
   std::optional<Request> running_;  // the job the worker is running
+  std::shared_ptr<Reply> running_reply_;  // its reply: once finished, the next job may queue behind it
   bool stopping_ = false;
   bool prepared_ = false;           // link up, drivers enabled, positions homed or declared
   std::string link_error_;          // why the link is not ready

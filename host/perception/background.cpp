@@ -10,40 +10,42 @@
 namespace rbx1::vision {
 namespace {
 
-// Median and MAD-based sigma of a CV_16S image (values within +-255), on a sparse grid for speed.
-void robust_stats(const cv::Mat& diff, int step, double& median, double& sigma) {
+// Median and MAD-based sigma of gray - background (values within +-255), on a sparse grid for speed.
+void robust_stats(const cv::Mat& g, const cv::Mat& bg, int step, double& median, double& sigma) {
   std::array<int, 512> hist{};
   int n = 0;
-  for (int y = step / 2; y < diff.rows; y += step) {
-    const int16_t* row = diff.ptr<int16_t>(y);
-    for (int x = step / 2; x < diff.cols; x += step) {
-      hist[std::clamp(row[x] + 256, 0, 511)]++;
+  for (int y = step / 2; y < g.rows; y += step) {
+    const uchar* gr = g.ptr<uchar>(y);
+    const uchar* br = bg.ptr<uchar>(y);
+    for (int x = step / 2; x < g.cols; x += step) {
+      hist[size_t(gr[x] - br[x] + 256)]++;
       ++n;
     }
   }
   auto quantile = [&](const std::array<int, 512>& h, int total) {
     int acc = 0;
     for (int i = 0; i < 512; ++i) {
-      acc += h[i];
+      acc += h[size_t(i)];
       if (2 * acc >= total) return i - 256;
     }
     return 0;
   };
   int med = quantile(hist, n);
   std::array<int, 512> dev{};
-  for (int i = 0; i < 512; ++i) dev[std::abs(i - 256 - med) + 256] += hist[i];
+  for (int i = 0; i < 512; ++i) dev[size_t(std::abs(i - 256 - med) + 256)] += hist[size_t(i)];
   int mad = quantile(dev, n);
   median = med;
   sigma = std::max(1.0, 1.4826 * mad);
 }
 
 // Which polarity the objects have: the sign whose tail (beyond the threshold) carries more contrast.
-int decide_sign(const cv::Mat& diff, double median, double threshold, int step) {
+int decide_sign(const cv::Mat& g, const cv::Mat& bg, double median, double threshold, int step) {
   double dark = 0, light = 0;
-  for (int y = step / 2; y < diff.rows; y += step) {
-    const int16_t* row = diff.ptr<int16_t>(y);
-    for (int x = step / 2; x < diff.cols; x += step) {
-      double v = row[x] - median;
+  for (int y = step / 2; y < g.rows; y += step) {
+    const uchar* gr = g.ptr<uchar>(y);
+    const uchar* br = bg.ptr<uchar>(y);
+    for (int x = step / 2; x < g.cols; x += step) {
+      double v = gr[x] - br[x] - median;
       if (v < -threshold) dark -= v;
       else if (v > threshold) light += v;
     }
@@ -55,6 +57,21 @@ int sign_of(Polarity p) { return p == Polarity::Light ? +1 : -1; }
 
 }  // namespace
 
+cv::Mat Contrast::contrast(cv::Rect roi) const {
+  cv::Mat out;
+  if (sign > 0) cv::subtract(gray(roi), background(roi), out, cv::noArray(), CV_16S);
+  else cv::subtract(background(roi), gray(roi), out, cv::noArray(), CV_16S);
+  return out;
+}
+
+cv::Mat Contrast::above(double t) const {
+  cv::Mat d, out;
+  if (sign > 0) cv::subtract(gray, background, d);  // saturates at 0: the other polarity drops out
+  else cv::subtract(background, gray, d);
+  cv::threshold(d, out, t, 255, cv::THRESH_BINARY);
+  return out;
+}
+
 bool contrast_from_background(const cv::Mat& gray, const cv::Mat& background_gray, Polarity objects, double min_contrast,
                               Contrast& out, std::string& error) {
   if (gray.size() != background_gray.size()) {
@@ -62,11 +79,13 @@ bool contrast_from_background(const cv::Mat& gray, const cv::Mat& background_gra
             " but the frame is " + std::to_string(gray.cols) + "x" + std::to_string(gray.rows);
     return false;
   }
-  cv::subtract(gray, background_gray, out.diff, cv::noArray(), CV_16S);
+  out.gray = gray;
+  out.background = background_gray;
   double median = 0;
-  robust_stats(out.diff, 3, median, out.noise_sigma);
-  out.sign = objects == Polarity::Auto ? decide_sign(out.diff, median, std::max(min_contrast, 4 * out.noise_sigma), 2)
-                                       : sign_of(objects);
+  robust_stats(gray, background_gray, 3, median, out.noise_sigma);
+  out.sign = objects == Polarity::Auto
+                 ? decide_sign(gray, background_gray, median, std::max(min_contrast, 4 * out.noise_sigma), 2)
+                 : sign_of(objects);
   return true;
 }
 
@@ -84,9 +103,9 @@ void contrast_auto(const cv::Mat& gray, Polarity objects, double min_contrast, C
   cv::Mat r;
   cv::subtract(small, b0, r, cv::noArray(), CV_16S);
   double med = 0, sig = 1;
-  robust_stats(r, 1, med, sig);
+  robust_stats(small, b0, 1, med, sig);
   double t = std::max(min_contrast, 4 * sig);
-  int sign = objects == Polarity::Auto ? decide_sign(r, med, t, 1) : sign_of(objects);
+  int sign = objects == Polarity::Auto ? decide_sign(small, b0, med, t, 1) : sign_of(objects);
   cv::Mat objmask;
   if (sign > 0) cv::compare(r, med + t / 2, objmask, cv::CMP_GT);
   else cv::compare(r, med - t / 2, objmask, cv::CMP_LT);
@@ -111,9 +130,10 @@ void contrast_auto(const cv::Mat& gray, Polarity objects, double min_contrast, C
   cv::Mat s8, b8;
   bsmall.convertTo(s8, CV_8U);
   cv::resize(s8, b8, gray.size(), 0, 0, cv::INTER_LINEAR);
-  cv::subtract(gray, b8, out.diff, cv::noArray(), CV_16S);
+  out.gray = gray;
+  out.background = b8;
   double median = 0;
-  robust_stats(out.diff, 4, median, out.noise_sigma);
+  robust_stats(gray, b8, 4, median, out.noise_sigma);
   out.sign = sign;  // decided on the low-resolution residual, where objects stand out of the noise
 }
 

@@ -8,10 +8,15 @@
 
 namespace rbx1::vision {
 
+// Kept as the two 8-bit images: the full-frame difference is only ever needed inside object ROIs.
 struct Contrast {
-  cv::Mat diff;             // CV_16S, frame gray minus background gray
-  int sign = -1;            // -1: objects darker than the background, +1: lighter
-  double noise_sigma = 1;   // robust spread of diff over the background (noise plus pattern residue)
+  cv::Mat gray, background;  // CV_8U, same size
+  int sign = -1;             // -1: objects darker than the background, +1: lighter
+  double noise_sigma = 1;    // robust spread of the difference over the table (noise plus pattern residue)
+  // sign * (gray - background) over roi, CV_16S: the objects' contrast, positive.
+  cv::Mat contrast(cv::Rect roi) const;
+  // 255 where the contrast exceeds t (8-bit saturating arithmetic, full frame).
+  cv::Mat above(double t) const;
 };
 
 // Known background (an image of the empty scene, same size). false + error when the sizes differ.

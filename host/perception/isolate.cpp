@@ -14,15 +14,14 @@ namespace {
 // interior at 1 and the table at 0 while the anti-aliased edge keeps its covered fraction (half level =
 // level / 2). Pixels of other objects are 0.
 void make_layer(const Contrast& con, const cv::Mat& labels, int label, cv::Rect roi, double threshold, Layer& layer) {
-  cv::Mat lab = labels(roi), d = con.diff(roi);
-  const int sign = con.sign;
+  cv::Mat lab = labels(roi), d = con.contrast(roi);
   // Median contrast over the component (a histogram: contrast is an integer within +-255).
   int hist[512] = {0}, n = 0;
   for (int y = 0; y < roi.height; ++y) {
     const int16_t* dr = d.ptr<int16_t>(y);
     const int* lr = lab.ptr<int>(y);
     for (int x = 0; x < roi.width; ++x)
-      if (lr[x] == label) hist[std::clamp(sign * dr[x] + 256, 0, 511)]++, ++n;
+      if (lr[x] == label) hist[std::clamp(dr[x] + 256, 0, 511)]++, ++n;
   }
   int acc = 0, med = 0;
   for (int i = 0; i < 512; ++i)
@@ -40,7 +39,7 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, cv::Rect 
     const int16_t* dr = d.ptr<int16_t>(y);
     const int* lr = lab.ptr<int>(y);
     uchar* ir = layer.inside.ptr<uchar>(y);
-    for (int x = 0; x < roi.width; ++x) ir[x] = lr[x] == label && sign * dr[x] > half ? 255 : 0;
+    for (int x = 0; x < roi.width; ++x) ir[x] = lr[x] == label && dr[x] > half ? 255 : 0;
   }
   cv::Mat near;
   cv::dilate(layer.inside, near, cv::Mat(), cv::Point(-1, -1), 2);
@@ -51,7 +50,7 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, cv::Rect 
     const uchar* nr = near.ptr<uchar>(y);
     float* sr = layer.soft.ptr<float>(y);
     for (int x = 0; x < roi.width; ++x)
-      sr[x] = nr[x] && (lr[x] == label || lr[x] == 0) ? std::clamp(float(sign * dr[x]) * a + b, 0.f, 1.f) : 0.f;
+      sr[x] = nr[x] && (lr[x] == label || lr[x] == 0) ? std::clamp(float(dr[x]) * a + b, 0.f, 1.f) : 0.f;
   }
   layer.roi = roi;
   layer.label = label;
@@ -69,11 +68,9 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, cv::Rect 
 }  // namespace
 
 bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, std::string& error) {
-  const cv::Mat& d = con.diff;
+  const cv::Mat& d = con.gray;
   out.threshold = std::max(opt.min_contrast, opt.noise_k * con.noise_sigma);
-  cv::Mat bin;
-  if (con.sign > 0) cv::compare(d, out.threshold, bin, cv::CMP_GT);
-  else cv::compare(d, -out.threshold, bin, cv::CMP_LT);
+  cv::Mat bin = con.above(out.threshold);
   cv::morphologyEx(bin, bin, cv::MORPH_OPEN, cv::Mat());  // cleaning: isolated noise pixels and hairlines
   double fg = double(cv::countNonZero(bin)) / double(bin.total());
   if (fg > opt.max_foreground) {

@@ -80,6 +80,12 @@ class ControlFifo {
 };
 
 void write_json(const Probes& probes, const std::string& path) {
+  struct stat st;
+  if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {  // a device or FIFO: write in place, never replace it
+    std::ofstream out(path);
+    out << probes.to_json().dump() << "\n";
+    return;
+  }
   std::string tmp = path + ".tmp";
   {
     std::ofstream out(tmp, std::ios::trunc);

@@ -4,7 +4,7 @@
 #include <array>
 #include <cstdint>
 
-#include RBX1_PINS_FILE  /* firmware/rbx1/src/pins.h, by path (see CMakeLists.txt) */
+#include "pins.h"  // firmware/rbx1/src/pins.h
 
 namespace rbx1::avrsim {
 

@@ -15,6 +15,20 @@ static uint32_t to_fixed(float v) {
   return (uint32_t)f;
 }
 
+// The time the stepper takes for the profile (an upper bound, so an entry never outlasts its planned time): the
+// first interval runs at v0 (as from rest), the others at v(s) = sqrt(v0^2 + 2 a s) on the ramps (s = steps from
+// the nearer end, below `ramp` steps) and at vc in between. 1/v is convex, so each ramp's sum over s = 1..ramp-1 is
+// at most the integral of 1/v from 1/2 to ramp - 1/2. The ramp-down looks ahead by the v/1024 steps of a tick
+// (at most ln(vc/v0)/1024 s more), and the 1 ms profile tick adds at most a tick of lag to the ramp-up. No interval is slower than v0, so n/v0 bounds short moves more tightly.
+static float profile_s(float n, float ramp, float v0, float vc, float a) {
+  float slowest = n / v0;
+  if (ramp < 1.0f) return 1.0f / v0 + (n - 1.0f) / vc;  // no ramp: v0 for the first step, vc for the rest
+  float v0sq = v0 * v0;
+  float g = ramp >= 2.0f ? (sqrtf(v0sq + 2.0f * a * (ramp - 0.5f)) - sqrtf(v0sq + a)) / a : 0.0f;
+  float t = 2.0f / v0 + 2.0f * g + (n - 2.0f * ramp) / vc + logf(vc / v0) / 1024.0f;
+  return (t < slowest ? t : slowest) + 0.002f;
+}
+
 uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6], uint16_t duration_ms) {
   memset(b, 0, sizeof(*b));
   b->kind = BLOCK_MOVE;
@@ -64,8 +78,8 @@ uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6]
   b->vc = to_fixed(vc);
   float dv = amax * (float)PLAN_V_ONE / (float)PROFILE_TICK_HZ;
   b->dv = dv < 1.0f ? 1 : (dv > 4.0e9f ? 4000000000UL : (uint32_t)dv);
-  float t_ms = (fn / vc + (vc - v0) * (vc - v0) / (amax * vc)) * 1000.0f;  // ramps from v0, not 0
-  if (t_ms > (float)duration_ms) b->planned_ms = t_ms > 65535.0f ? 65535 : (uint16_t)(t_ms + 0.5f);
+  float t_ms = profile_s(fn, (float)ramp_steps, v0, vc, amax) * 1000.0f;
+  if (t_ms > (float)duration_ms) b->planned_ms = t_ms > 65535.0f ? 65535 : (uint16_t)(t_ms + 0.999f);
   return RBX1_OK;
 }
 

@@ -73,7 +73,7 @@ def test_pty_path_first_and_echo(sim):
     assert sim.pty.startswith("/dev/pts/")
     assert sim.cmd("ping") == "pong"
     assert sim.cmd("bogus") == "err"
-    sim.control("stats /dev/null")  # a new window: the next exchanges only
+    sim.control(f"stats {sim.json.with_name('window.json')}")  # a new window: the next exchanges only
     time.sleep(0.05)
     for _ in range(3):
         assert sim.cmd("ping") == "pong"

@@ -9,7 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include RBX1_PINS_FILE  /* firmware/rbx1/src/pins.h, by path (see CMakeLists.txt) */
+#include "pins.h" /* firmware/rbx1/src/pins.h */
 
 /* PINx, DDRx, PORTx are consecutive on the ATmega2560; map the pin map's port letters onto them. */
 static volatile uint8_t *pin_reg(char port) {
