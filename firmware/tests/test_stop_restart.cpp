@@ -31,12 +31,12 @@ class Recovery {
 
   // MOVE to target from rest, polling STATUS every 5 ms (the heartbeat): it must end exactly at target within its
   // planned time plus the tick that starts it and the tick that completes it.
-  void move_completes(const std::vector<int32_t>& target, const std::string& what) {
+  void move_completes(const std::vector<int32_t>& target, const std::string& what, uint16_t duration_ms = 0) {
     SCOPED_TRACE(what + ": MOVE to " + std::to_string(target[0]) + "," + std::to_string(target[1]));
     done_ = Done{};
     uint16_t before = status().moves_done;
     uint64_t t0 = sim::board().now;
-    ASSERT_EQ(move(target), RBX1_OK);
+    ASSERT_EQ(fw_.move(target, duration_ms), RBX1_OK);
     for (int i = 0; i < 20000 && !done_.got; i++) {  // 100 s of simulated time at most
       run_ms(5);
       status();
@@ -46,6 +46,8 @@ class Recovery {
     uint64_t took_ms = (done_.at - t0 + sim::kTicksPerMs - 1) / sim::kTicksPerMs;
     EXPECT_LE(took_ms, (uint64_t)done_.planned_ms + 3) << "planned " << done_.planned_ms << " ms";
     EXPECT_LE(done_.planned_ms, took_ms + 10) << "the planned time is a tight bound, not a guess";
+    EXPECT_GE(took_ms, (uint64_t)duration_ms) << "an entry never completes before duration_ms";
+    EXPECT_GE(done_.planned_ms, duration_ms);
     rbx1_status_resp s = status();
     EXPECT_EQ(s.state, RBX1_STATE_IDLE);
     EXPECT_EQ(s.moves_done, (uint16_t)(before + 1));
@@ -85,7 +87,6 @@ class Recovery {
 
  private:
   rbx1_status_resp status() { return fw_.status(); }
-  uint8_t move(const std::vector<int32_t>& t) { return fw_.move(t); }
   void run_ms(uint32_t ms) { fw_.run_ms(ms); }
   uint8_t simple(uint8_t type) { return fw_.simple(type); }
   Fw& fw_;
@@ -173,6 +174,21 @@ TEST_F(Fw, PlannedTimeBoundsTheProfileTightly) {
         r.move_completes({at, n / 3, 0, 0, 0, 0}, "ACCEL " + std::to_string(accel) + ", MAX_SPEED " +
                                                       std::to_string(vmax) + ", " + std::to_string(n) + " steps");
         if (HasFatalFailure()) return;
+      }
+    }
+  }
+  // Stretched by duration_ms: the motion is aimed to end by then, so the entry completes at duration_ms.
+  ASSERT_EQ(config_set(0, RBX1_KEY_MAX_SPEED, 4000), RBX1_OK);
+  ASSERT_EQ(config_set(0, RBX1_KEY_ACCEL, 8000), RBX1_OK);
+  int32_t at = 0;
+  for (uint16_t duration : {300, 600, 1000, 5000}) {
+    for (int32_t n : {13, 200, 1500}) {
+      at = at > 0 ? at - n : at + n;
+      r.move_completes({at, -n / 2, 0, 0, 0, 7}, std::to_string(n) + " steps in " + std::to_string(duration) + " ms",
+                       duration);
+      if (HasFatalFailure()) return;
+      if (duration == 1000) {  // stretched to it, not longer
+        EXPECT_EQ(r.done_.planned_ms, duration) << n << " steps";
       }
     }
   }

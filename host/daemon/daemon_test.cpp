@@ -127,6 +127,25 @@ TEST_F(ServerTest, MalformedLinesGetErrorsAndTheConnectionSurvives) {
   EXPECT_EQ(handled_, 1);
 }
 
+TEST_F(ServerTest, ServesManyClientsConnectingAtOnce) {
+  // Connections accepted while others are served must be polled from the next round on (a past bug read
+  // their events from beyond the poll array and dropped them).
+  std::vector<std::unique_ptr<control::Client>> clients;
+  for (int i = 0; i < 20; ++i) {
+    auto c = std::make_unique<control::Client>();
+    std::string error;
+    ASSERT_EQ(c->connect(path_, error), 0) << error;
+    ASSERT_EQ(c->send_line(R"({"cmd":"home"})"), 0);
+    clients.push_back(std::move(c));
+  }
+  for (auto& c : clients) {
+    std::string line;
+    ASSERT_EQ(c->read_line(line, 2000), 0);
+    EXPECT_EQ(nlohmann::json::parse(line)["result"]["cmd"], "home");
+  }
+  EXPECT_EQ(handled_, 20);
+}
+
 TEST_F(ServerTest, ReplacesAStaleSocketButNotALiveOne) {
   Server second;
   std::string error;

@@ -160,7 +160,7 @@ nlohmann::json Machine::status_reply() {
   std::lock_guard lock(mutex_);
   nlohmann::json j;
   j["job"] = running_ ? nlohmann::json(command_name(running_->command)) : nlohmann::json(nullptr);
-  j["ready"] = prepared_ && link_.connected();
+  j["ready"] = prepared_ && link_.connected() && !(last_status_ && last_status_->state == RBX1_STATE_FAULT);
   j["link"] = {{"port", config_.link.port}, {"connected", link_.connected()}};
   if (!link_error_.empty()) j["link"]["error"] = link_error_;
   auto stats = link_.stats();

@@ -173,6 +173,7 @@ int Server::run(const Handler& handler) {
       spdlog::error("control: poll: {}", std::strerror(errno));
       return -errno;
     }
+    const size_t polled = clients.size();  // clients accepted below were not in this poll
     if (fds[1].revents & POLLIN) {
       int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
       if (fd >= 0) {
@@ -184,7 +185,7 @@ int Server::run(const Handler& handler) {
         }
       }
     }
-    for (size_t i = 0; i < clients.size(); ++i) {
+    for (size_t i = 0; i < polled; ++i) {
       short ev = fds[2 + i].revents;
       if (!ev) continue;
       Client& c = clients[i];

@@ -96,3 +96,12 @@ def test_cli_exit_codes_and_output(sim, daemon_factory, tmp_path):
     r = run(rbx1, "shutdown", "--socket", d.socket)
     assert r.returncode == 0
     assert d.proc.wait(timeout=10) == 0
+
+
+def test_bundled_arm_table_is_the_kinematics_defaults():
+    """data/rbx1.toml carries host/arm/defaults.toml word for word: one source for the arm's defaults."""
+    bundled = (e2e.DATA / "rbx1.toml").read_text()
+    defaults = (e2e.ROOT / "host" / "arm" / "defaults.toml").read_text()
+    start = defaults.index("# [arm]")
+    assert bundled[bundled.index("# [arm]"):] == defaults[start:], \
+        "data/rbx1.toml: replace everything from '# [arm]' on with the same part of host/arm/defaults.toml"

@@ -19,7 +19,8 @@ static uint32_t to_fixed(float v) {
 // first interval runs at v0 (as from rest), the others at v(s) = sqrt(v0^2 + 2 a s) on the ramps (s = steps from
 // the nearer end, below `ramp` steps) and at vc in between. 1/v is convex, so each ramp's sum over s = 1..ramp-1 is
 // at most the integral of 1/v from 1/2 to ramp - 1/2. The ramp-down looks ahead by the v/1024 steps of a tick
-// (at most ln(vc/v0)/1024 s more), and the 1 ms profile tick adds at most a tick of lag to the ramp-up. No interval is slower than v0, so n/v0 bounds short moves more tightly.
+// (at most ln(vc/v0)/1024 s more), and the 1 ms profile tick adds at most a tick of lag to the ramp-up. No
+// interval is slower than v0, so n/v0 bounds short moves more tightly.
 static float profile_s(float n, float ramp, float v0, float vc, float a) {
   float slowest = n / v0;
   if (ramp < 1.0f) return 1.0f / v0 + (n - 1.0f) / vc;  // no ramp: v0 for the first step, vc for the rest
@@ -27,6 +28,25 @@ static float profile_s(float n, float ramp, float v0, float vc, float a) {
   float g = ramp >= 2.0f ? (sqrtf(v0sq + 2.0f * a * (ramp - 0.5f)) - sqrtf(v0sq + a)) / a : 0.0f;
   float t = 2.0f / v0 + 2.0f * g + (n - 2.0f * ramp) / vc + logf(vc / v0) / 1024.0f;
   return (t < slowest ? t : slowest) + 0.002f;
+}
+
+// Cruise velocity v of a profile taking T s: n/v + v/a = T (the smaller root).
+static float stretch_v(float n, float a, float T) {
+  float disc = a * a * T * T - 4.0f * a * n;
+  return (a * T - sqrtf(disc > 0 ? disc : 0)) * 0.5f;
+}
+
+// Start/stop rate and ramp length for cruise velocity vc; returns the profile's time (profile_s).
+static float shape(float fn, uint32_t n, float vc, float a, float *v0_out, uint32_t *ramp_out) {
+  // The first step comes after sqrt(2/a) s, as from rest under constant acceleration; stop from the same rate.
+  float v0 = sqrtf(a * 0.5f);
+  if (v0 > vc) v0 = vc;
+  float ramp = (vc * vc - v0 * v0) / (2.0f * a);
+  uint32_t ramp_steps = (uint32_t)(ramp + 0.5f);
+  if (ramp_steps > n / 2) ramp_steps = n / 2;
+  *v0_out = v0;
+  *ramp_out = ramp_steps;
+  return profile_s(fn, (float)ramp_steps, v0, vc, a);
 }
 
 uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6], uint16_t duration_ms) {
@@ -58,19 +78,30 @@ uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6]
   // Fastest profile: cruise at vmax, or a triangle peaking where ramp-up and ramp-down meet (v^2/a = n).
   float vc = sqrtf(amax * fn);
   if (vmax < vc) vc = vmax;
-  // Slower when duration_ms asks: solve n/v + v/a = T for the cruise velocity (smaller root).
-  float T = (float)duration_ms * 0.001f;
+  // Slower when duration_ms asks: solve n/v + v/a = T for the cruise velocity. The stepper's overheads
+  // (profile_s) make the motion a little longer than that, so aim earlier by them: it ends by duration_ms.
+  float T = (float)duration_ms * 0.001f, vfast = vc;
+  uint8_t stretched = 0;
   if (T > 0 && fn / vc + vc / amax < T) {
-    float disc = amax * amax * T * T - 4.0f * amax * fn;
-    float v = (amax * T - sqrtf(disc > 0 ? disc : 0)) * 0.5f;
-    if (v < vc) vc = v;
+    float v = stretch_v(fn, amax, T);
+    if (v < vc) {
+      vc = v;
+      stretched = 1;
+    }
   }
-  // The first step comes after sqrt(2/a) s, as from rest under constant acceleration; stop from the same rate.
-  float v0 = sqrtf(amax * 0.5f);
-  if (v0 > vc) v0 = vc;
-  float ramp = (vc * vc - v0 * v0) / (2.0f * amax);
-  uint32_t ramp_steps = (uint32_t)(ramp + 0.5f);
-  if (ramp_steps > n / 2) ramp_steps = n / 2;
+  float v0;
+  uint32_t ramp_steps;
+  float t = shape(fn, n, vc, amax, &v0, &ramp_steps);
+  float aim = T;
+  for (uint8_t k = 0; stretched && t > T && k < 3; k++) {  // converges in one or two
+    aim -= t - T + 0.0005f;
+    float v = stretch_v(fn, amax, aim);
+    if (v > vfast) break;  // the limits allow no faster profile
+    float v0b;
+    uint32_t rb;
+    float tb = shape(fn, n, v, amax, &v0b, &rb);
+    vc = v, v0 = v0b, ramp_steps = rb, t = tb;
+  }
   b->ramp_steps = ramp_steps;
   b->v0sq4 = (uint32_t)(4.0f * v0 * v0 + 0.5f);  // <= 4 vc^2 <= 1.6e9: fits
   b->a8 = (uint32_t)(8.0f * amax + 0.5f);        // 8 a s < 4 (vc^2 - v0^2) + 8 a on the ramps: fits
@@ -78,7 +109,7 @@ uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6]
   b->vc = to_fixed(vc);
   float dv = amax * (float)PLAN_V_ONE / (float)PROFILE_TICK_HZ;
   b->dv = dv < 1.0f ? 1 : (dv > 4.0e9f ? 4000000000UL : (uint32_t)dv);
-  float t_ms = profile_s(fn, (float)ramp_steps, v0, vc, amax) * 1000.0f;
+  float t_ms = t * 1000.0f;
   if (t_ms > (float)duration_ms) b->planned_ms = t_ms > 65535.0f ? 65535 : (uint16_t)(t_ms + 0.999f);
   return RBX1_OK;
 }
