@@ -270,7 +270,7 @@ void Machine::worker() {
   for (;;) {
     std::unique_lock lock(mutex_);
     if (stopping_) break;
-    if (!prepared_ || !link_.connected()) {
+    if ((!prepared_ || !link_.connected()) && !hold_) {
       lock.unlock();
       std::string error;
       bool ok = prepare(error);
@@ -310,6 +310,18 @@ void Machine::worker() {
       int r = link_.status(st);
       if (r == 0) note_status(st);
       else spdlog::warn("link: idle STATUS failed ({})", r);
+      if (r == 0 && st.homed != 0x3F) {
+        // A reset board (power, watchdog, USB re-plug) no longer knows where the arm is; neither does the
+        // daemon. Declaring the home pose again is the operator's call, not ours.
+        std::lock_guard relock(mutex_);
+        if (prepared_) {
+          prepared_ = false;
+          hold_ = true;
+          link_error_ = "the firmware lost its joint positions (reset?): put the arm at its home pose, then rbx1 clear-fault";
+          set_led(false);
+          spdlog::error("{}", link_error_);
+        }
+      }
     }
   }
   // Shutdown while moving: a controlled stop, never an arm left running unattended.
@@ -345,6 +357,10 @@ bool Machine::ready(Reply& reply) {
     std::lock_guard lock(mutex_);
     if (prepared_ && link_.connected()) return true;
     error = link_error_;
+    if (hold_) {
+      reply.error("not_ready", error);
+      return false;
+    }
   }
   // The worker retries in the background; a job waits a moment for a link that is just coming up.
   bool ok = prepare(error);
@@ -479,6 +495,10 @@ void Machine::job_clear_fault(Reply& reply) {
     return;
   }
   reply.event("fault_cleared");
+  {
+    std::lock_guard lock(mutex_);
+    hold_ = false;  // the operator's word that the arm stands where home_on_start will declare it
+  }
   std::string error;
   bool ok = prepare(error);
   {

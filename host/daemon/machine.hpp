@@ -76,6 +76,7 @@ class Machine {
   std::shared_ptr<Reply> running_reply_;  // its reply: once finished, the next job may queue behind it
   bool stopping_ = false;
   bool prepared_ = false;           // link up, drivers enabled, positions homed or declared
+  bool hold_ = false;               // the firmware lost its positions: wait for the operator (clear_fault)
   std::string link_error_;          // why the link is not ready
   std::optional<rbx1_status_resp> last_status_;
   std::string last_estop_;          // source of the last e-stop

@@ -188,6 +188,9 @@ MotionResult Motion::run(const std::vector<MotionStep>& steps, const MotionHooks
     std::this_thread::sleep_for(std::chrono::milliseconds(options_.poll_ms));
     if (read_status() < 0) return res;
     size_t now_done = uint16_t(st.moves_done - base);
+    if (st.homed != 0x3F)
+      return fail("firmware_reset", "the firmware lost its joint positions during step " + std::to_string(done + 1) +
+                                        " (reset?); refusing to guess the arm's state");
     if (now_done > sent) {  // more completions than we sent: the firmware is not the one we started with
       return fail("firmware_reset", "moves_done jumped from " + std::to_string(base) + " to " +
                                         std::to_string(st.moves_done) + "; refusing to guess the arm's state");

@@ -76,3 +76,31 @@ def test_vanished_and_returned_port(tmp_path, sim, daemon_factory):
 
     events, final = run_with_outage(tmp_path, sim, daemon_factory, "carry", outage)
     assert final["result"]["link_recoveries"] >= 1
+
+
+def test_firmware_reset_mid_pick_is_never_guessed(sim, daemon_factory):
+    """A power-cycled board (simfw `reset`) forgot where the arm is: the job fails with firmware_reset, the daemon
+    stops being ready, and only the operator's clear_fault declares the positions again."""
+    d = daemon_factory(sim.port)
+    fired = threading.Event()
+
+    def on_event(ev):
+        if ev["event"] == "step" and ev["name"] == "lift" and not fired.is_set():
+            fired.set()
+            sim.control("reset")
+
+    events, final = pick(d, e2e.scene_labels()[0], on_event)
+    assert fired.is_set()
+    assert final["error"]["code"] == "firmware_reset", final
+    deadline = time.monotonic() + 5
+    while d.request({"cmd": "status"})[1]["result"]["ready"]:
+        assert time.monotonic() < deadline, "still ready after the reset"
+        time.sleep(0.1)
+    _, final = d.request({"cmd": "home"})
+    assert final["error"]["code"] == "not_ready" and "clear-fault" in final["error"]["message"], final
+    n = len(sim.moves())
+    _, final = d.request({"cmd": "clear_fault"})
+    assert "result" in final, final
+    _, final = d.request({"cmd": "home"})
+    assert "result" in final, final
+    assert len(sim.moves()) == n + 1  # only the home move ran after the reset
