@@ -42,14 +42,14 @@ def match_scene(truth, detections):
     for o in objs:
         if o["touching"] and o["id"] not in seen:
             # The connected group of touching objects (pairs here, but follow chains anyway).
-            group, todo = [], [o["id"]]
-            while todo:
-                k = todo.pop()
+            group, pending = [], [o["id"]]
+            while pending:
+                k = pending.pop()
                 if k in seen:
                     continue
                 seen.add(k)
                 group.append(objs[k])
-                todo.extend(objs[k]["touching"])
+                pending.extend(objs[k]["touching"])
             groups.append(group)
     targets = [("object", o, np.array(o["centroid_px"])) for o in separated]
     targets += [("group", g, _union_centroid(g)) for g in groups]
