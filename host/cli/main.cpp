@@ -9,15 +9,9 @@ int main(int argc, char** argv) {
   CLI::App app{"rbx1 - vision-guided pick-and-place for the RBX1 arm"};
   app.require_subcommand(1);
   int exit_code = 0;
-#ifdef RBX1_CLI_VISION
   rbx1::cli::add_vision_commands(app, exit_code);
-#endif
-#ifdef RBX1_CLI_CALIBRATE
   rbx1::cli::add_calibrate_commands(app, exit_code);
-#endif
-#ifdef RBX1_CLI_DAEMON
   rbx1::cli::add_daemon_commands(app, exit_code);
-#endif
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp&) {

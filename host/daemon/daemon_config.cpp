@@ -4,6 +4,16 @@
 
 namespace rbx1::daemon {
 
+namespace {
+// Like a request's name or place: at most 64 printable characters (it ends up in events and logs).
+bool printable(const std::string& s) {
+  if (s.size() > 64) return false;
+  for (unsigned char c : s)
+    if (c < 0x20 || c == 0x7f) return false;
+  return true;
+}
+}  // namespace
+
 void parse_daemon_config(config::Section s, DaemonConfig& out) {
   out.socket = s.string("socket", out.socket);
   if (out.socket.empty() || out.socket.size() > 100) s.errors().add(s.path() + ".socket", "must be a path of 1..100 characters");
@@ -19,6 +29,12 @@ void parse_daemon_config(config::Section s, DaemonConfig& out) {
   out.reconnect_timeout_s = s.number("reconnect_timeout_s", out.reconnect_timeout_s, 0.1, 3600);
   out.status_poll_ms = int(s.integer("status_poll_ms", out.status_poll_ms, 5, 500));
   out.annotate = s.string("annotate", out.annotate);
+  out.start_pick = s.string("start_pick", out.start_pick);
+  if (!printable(out.start_pick))
+    s.errors().add(s.path() + ".start_pick", "must be an object name of at most 64 printable characters (\"\" = none)");
+  out.start_place = s.string("start_place", out.start_place);
+  if (out.start_place.empty() || !printable(out.start_place))
+    s.errors().add(s.path() + ".start_place", "must be a place name of 1..64 printable characters");
   s.reject_unknown();
 }
 

@@ -17,6 +17,8 @@ struct DaemonConfig {
   double reconnect_timeout_s = 30;  // how long a vanished link may stay away before the job fails
   int status_poll_ms = 50;          // STATUS polling while waiting for motion (also the heartbeat then)
   std::string annotate;             // if set, each scan writes the annotated image (Figure 20) here
+  std::string start_pick;           // [gpio] start_button runs `pick start_pick --place start_place`; "" = none
+  std::string start_place = "tray";
 };
 
 void parse_daemon_config(config::Section daemon, DaemonConfig& out);

@@ -31,6 +31,15 @@ bool load_config(const std::string& file, const Overrides& overrides, Config& ou
   if (!overrides.socket.empty()) out.daemon.socket = overrides.socket;
   if (!overrides.annotate.empty()) out.daemon.annotate = overrides.annotate;
   if (out.link.port.empty()) errors.add("link.port", "must be set (in the file, with --port, or $RBX1_PORT)");
+  // The start button runs a configured pick: a button that would do nothing, or a pick to a place the arm does
+  // not know, is a mistake in the file, not something to discover when the button is pressed.
+  if (out.gpio.start_button.configured() && out.daemon.start_pick.empty())
+    errors.add("daemon.start_pick", "must name the object to pick when [gpio] start_button is configured");
+  if (!out.daemon.start_pick.empty() && !out.arm.places.count(out.daemon.start_place)) {
+    std::string known;
+    for (const auto& [k, v] : out.arm.places) known += (known.empty() ? "" : ", ") + k;
+    errors.add("daemon.start_place", "no place \"" + out.daemon.start_place + "\" in [arm] places (known: " + known + ")");
+  }
   if (out.camera.device.empty()) errors.add("camera.device", "must be set (a /dev/videoN, an image or a folder)");
 
   fs::path dir = fs::absolute(fs::path(file)).parent_path();

@@ -1,12 +1,25 @@
-// daemon_test.cpp - request parsing, the control socket (framing, limits, error replies, mode) and [daemon] config.
-#include <gtest/gtest.h>
+// daemon_test.cpp - request parsing, the control socket (framing, limits, error replies, mode), [daemon] config,
+// and the start button driving a Machine against rbx1-simfw.
+
+#include <signal.h>
+#include <spawn.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <filesystem>
+#include <fstream>
 #include <thread>
+
+#include <gtest/gtest.h>
+#include <spdlog/sinks/ringbuffer_sink.h>
+#include <spdlog/spdlog.h>
 
 #include "control_client.hpp"
 #include "daemon_config.hpp"
+#include "daemon_setup.hpp"
+#include "machine.hpp"
 #include "request.hpp"
 #include "server.hpp"
 
@@ -181,4 +194,202 @@ colour = "red"
   EXPECT_NE(all.find("daemon.log_level"), std::string::npos);
   EXPECT_NE(all.find("daemon.move_timeout_s"), std::string::npos);
   EXPECT_NE(all.find("daemon.colour: unknown key"), std::string::npos);
+}
+
+TEST(DaemonConfig, StartPickAndPlace) {
+  config::Errors errors;
+  auto table = config::parse_text("start_pick = \"bo\\u0001lt\"\nstart_place = \"\"\n", errors);
+  ASSERT_TRUE(errors.ok()) << errors.joined();
+  DaemonConfig d;
+  parse_daemon_config(config::Section(&table, "daemon", errors), d);
+  std::string all = errors.joined();
+  EXPECT_EQ(errors.messages().size(), 2u) << all;
+  EXPECT_NE(all.find("daemon.start_pick"), std::string::npos) << all;
+  EXPECT_NE(all.find("daemon.start_place"), std::string::npos) << all;
+
+  config::Errors ok_errors;
+  auto empty = config::parse_text("", ok_errors);
+  DaemonConfig defaults;
+  parse_daemon_config(config::Section(&empty, "daemon", ok_errors), defaults);
+  EXPECT_TRUE(ok_errors.ok()) << ok_errors.joined();
+  EXPECT_EQ(defaults.start_pick, "");
+  EXPECT_EQ(defaults.start_place, "tray");
+}
+
+extern char** environ;
+
+namespace {
+
+// [gpio] start_button without [daemon] start_pick, and a start_place the arm does not know, name their keys.
+TEST(DaemonStartButtonConfig, ErrorsNameTheKeys) {
+  auto dir = std::filesystem::temp_directory_path() / ("rbx1-start-button-" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  auto load = [&](const std::string& text) {
+    auto file = dir / "rbx1.toml";
+    std::ofstream(file) << text;
+    Config c;
+    config::Errors errors;
+    Overrides o;
+    o.port = "/dev/null";
+    load_config(file.string(), o, c, errors);
+    return errors.joined();
+  };
+  std::string a = load("[camera]\ndevice = \"x.png\"\n[gpio]\nstart_button = { line = \"27\", chip = \"gpiochip0\" }\n");
+  EXPECT_NE(a.find("daemon.start_pick: must name the object"), std::string::npos) << a;
+  std::string b = load("[camera]\ndevice = \"x.png\"\n[daemon]\nstart_pick = \"bolt\"\nstart_place = \"shelf\"\n");
+  EXPECT_NE(b.find("daemon.start_place: no place \"shelf\""), std::string::npos) << b;
+  EXPECT_EQ(b.find("daemon.start_pick"), std::string::npos) << b;
+  std::string c = load("[camera]\ndevice = \"x.png\"\n[daemon]\nstart_place = \"shelf\"\n");  // no button job: unused
+  EXPECT_EQ(c, "");
+  std::filesystem::remove_all(dir);
+}
+
+// rbx1-simfw behind its pty, a child process for the test's lifetime.
+class Simfw {
+ public:
+  Simfw() {
+    int out[2];
+    if (pipe(out) < 0) return;
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_adddup2(&fa, out[1], 1);
+    posix_spawn_file_actions_addclose(&fa, out[0]);
+    char* argv[] = {const_cast<char*>(RBX1_SIMFW_BIN), nullptr};
+    if (posix_spawn(&pid_, RBX1_SIMFW_BIN, &fa, nullptr, argv, environ) != 0) pid_ = -1;
+    posix_spawn_file_actions_destroy(&fa);
+    ::close(out[1]);
+    char c;
+    while (pid_ > 0 && ::read(out[0], &c, 1) == 1 && c != '\n') port_ += c;
+    out_ = out[0];
+  }
+  ~Simfw() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGTERM);
+      ::waitpid(pid_, nullptr, 0);
+    }
+    if (out_ >= 0) ::close(out_);
+  }
+  const std::string& port() const { return port_; }
+
+ private:
+  pid_t pid_ = -1;
+  int out_ = -1;
+  std::string port_;
+};
+
+// One request through Machine::handle, its reply read from a socketpair until the final line.
+nlohmann::json call(Machine& m, Command c) {
+  int sv[2];
+  if (socketpair(AF_UNIX, SOCK_STREAM, 0, sv) < 0) return nullptr;
+  auto fd = std::shared_ptr<int>(new int(sv[0]), [](int* p) { ::close(*p); delete p; });
+  Request r;
+  r.command = c;
+  m.handle(r, std::make_shared<Reply>(fd, c));
+  std::string buf;
+  char chunk[4096];
+  nlohmann::json out;
+  for (;;) {
+    size_t nl = buf.find('\n');
+    if (nl != std::string::npos) {
+      auto j = nlohmann::json::parse(buf.substr(0, nl), nullptr, false);
+      buf.erase(0, nl + 1);
+      if (control::is_final(j)) {
+        out = j;
+        break;
+      }
+      continue;
+    }
+    ssize_t n = ::read(sv[1], chunk, sizeof chunk);
+    if (n <= 0) break;
+    buf.append(chunk, size_t(n));
+  }
+  ::close(sv[1]);
+  return out;
+}
+
+// Waits up to timeout_ms for the status reply's "job" to satisfy pred.
+template <class Pred>
+bool wait_job(Machine& m, Pred pred, int timeout_ms) {
+  for (int t = 0; t < timeout_ms; t += 10) {
+    auto st = call(m, Command::Status);
+    if (st.is_object() && st.contains("result") && pred(st["result"]["job"])) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return false;
+}
+
+size_t count_lines(const std::vector<std::string>& lines, const std::string& needle) {
+  size_t n = 0;
+  for (const auto& l : lines) n += l.find(needle) != std::string::npos;
+  return n;
+}
+
+}  // namespace
+
+// The simulated start button (active-low, debounced by the same InputWatcher as the e-stop) starts the configured
+// pick on an idle daemon; its events go to the log; a press while it runs is ignored and queues nothing.
+TEST(DaemonStartButton, PressRunsTheConfiguredPickOnce) {
+  Simfw sim;
+  ASSERT_FALSE(sim.port().empty()) << RBX1_SIMFW_BIN << " printed no pty path";
+  auto ring = std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(5000);
+  auto previous = spdlog::default_logger();
+  spdlog::set_default_logger(std::make_shared<spdlog::logger>("test", ring));
+  spdlog::set_pattern("%v");
+
+  Config config;
+  config::Errors errors;
+  Overrides o;
+  o.port = sim.port();
+  ASSERT_TRUE(load_config(RBX1_DATA_DIR "/rbx1.toml", o, config, errors)) << errors.joined();
+  config.daemon.start_pick = "l_shape";
+  config.daemon.start_place = "tray";
+  config.gpio.start_button.active_low = true;
+  config.gpio.start_button.debounce_ms = 10;
+  auto source = std::make_unique<gpio::SimEdgeSource>(true);  // active-low: released reads 1
+  gpio::SimEdgeSource* button = source.get();
+  {
+    Machine machine(config, nullptr, std::move(source));
+    std::string error;
+    ASSERT_EQ(machine.start(error), 0) << error;
+    bool ready = false;
+    for (int i = 0; i < 200 && !ready; ++i) {
+      auto st = call(machine, Command::Status);
+      ready = st.is_object() && st["result"].value("ready", false);
+      if (!ready) std::this_thread::sleep_for(std::chrono::milliseconds(25));
+    }
+    ASSERT_TRUE(ready);
+    EXPECT_TRUE(wait_job(machine, [](const nlohmann::json& j) { return j.is_null(); }, 100));
+
+    button->inject(false);  // pressed
+    ASSERT_TRUE(wait_job(machine, [](const nlohmann::json& j) { return j == "pick"; }, 3000))
+        << "the press started no job";
+    std::this_thread::sleep_for(std::chrono::milliseconds(40));
+    button->inject(true);  // released
+    std::this_thread::sleep_for(std::chrono::milliseconds(40));
+    button->inject(false);  // pressed again while the pick runs
+    std::this_thread::sleep_for(std::chrono::milliseconds(40));
+    button->inject(true);
+    std::this_thread::sleep_for(std::chrono::milliseconds(40));
+    auto st = call(machine, Command::Status);
+    EXPECT_EQ(st["result"]["job"], "pick") << st.dump();
+    // A client's request meanwhile is refused as busy, as for any job.
+    auto busy = call(machine, Command::Home);
+    EXPECT_EQ(busy["error"]["code"], "busy") << busy.dump();
+
+    machine.estop("test");  // end the pick quickly; the worker must not start a queued second one
+    ASSERT_TRUE(wait_job(machine, [](const nlohmann::json& j) { return j.is_null(); }, 5000));
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    EXPECT_TRUE(wait_job(machine, [](const nlohmann::json& j) { return j.is_null(); }, 50));
+    machine.stop();
+  }
+  auto lines = ring->last_formatted();
+  spdlog::set_default_logger(previous);
+  std::string all;
+  for (const auto& l : lines) all += l + "\n";
+  EXPECT_EQ(count_lines(lines, "start button: pick l_shape --place tray"), 1u) << all;
+  EXPECT_EQ(count_lines(lines, "\"event\":\"job_started\""), 1u) << all;
+  EXPECT_EQ(count_lines(lines, R"("event":"job_started","name":"l_shape","place":"tray")"), 1u) << all;
+  EXPECT_EQ(count_lines(lines, "pressed while a job is running (pick); ignored"), 1u) << all;
+  EXPECT_EQ(count_lines(lines, "\"event\":\"captured\""), 0u) << all;  // stopped on the way to the scan pose
+  EXPECT_EQ(count_lines(lines, R"(start button: {"error":{"code":"estop")"), 1u) << all;
 }

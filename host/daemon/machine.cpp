@@ -23,8 +23,9 @@ int64_t mono_ns() {
 }
 }  // namespace
 
-Machine::Machine(Config config, std::unique_ptr<gpio::EdgeSource> estop_source)
-    : config_(std::move(config)), estop_source_(std::move(estop_source)) {}
+Machine::Machine(Config config, std::unique_ptr<gpio::EdgeSource> estop_source,
+                 std::unique_ptr<gpio::EdgeSource> start_source)
+    : config_(std::move(config)), estop_source_(std::move(estop_source)), start_source_(std::move(start_source)) {}
 
 int Machine::start_gpio(std::string& error) {
   const auto& g = config_.gpio;
@@ -50,8 +51,29 @@ int Machine::start_gpio(std::string& error) {
     if (!status_led_) return -ENODEV;
     status_led_->set(false);
   }
-  if (g.start_button.configured())
-    spdlog::warn("gpio: start_button is configured but rbx1d gives it no job; it is ignored");
+  // The start button: the same watcher (debounce, active-low) as the e-stop; a press (the debounced edge to
+  // active) runs the configured pick. load_config insists on [daemon] start_pick when the line is configured.
+  if (start_source_) {
+    start_input_ = std::make_unique<gpio::InputWatcher>("start_button", std::move(start_source_),
+                                                        g.start_button.active_low, g.start_button.debounce_ms);
+  } else if (g.start_button.configured()) {
+    start_input_ = gpio::open_input("start_button", g.start_button, error);
+    if (!start_input_) return -ENODEV;
+  }
+  if (start_input_) {
+    int r = start_input_->start([this](const gpio::InputEvent& ev) {
+      if (ev.active) start_pressed();  // on the watcher thread: only queues the job
+    });
+    if (r < 0) {
+      error = start_input_->describe() + ": cannot watch the start button (" + std::to_string(r) + ")";
+      return r;
+    }
+    if (config_.daemon.start_pick.empty())
+      spdlog::warn("gpio: start button on {} does nothing: daemon.start_pick is empty", start_input_->describe());
+    else
+      spdlog::info("gpio: start button on {}: pick {} --place {}", start_input_->describe(),
+                   config_.daemon.start_pick, config_.daemon.start_place);
+  }
   return 0;
 }
 
@@ -84,6 +106,7 @@ void Machine::stop() {
   cv_.notify_all();
   if (worker_.joinable()) worker_.join();
   if (estop_input_) estop_input_->stop();
+  if (start_input_) start_input_->stop();
   set_led(false);
   link_.close();
 }
@@ -145,13 +168,45 @@ void Machine::handle(const Request& request, std::shared_ptr<Reply> reply) {
     reply->error("shutting_down", "rbx1d is shutting down");
     return;
   }
-  // A job whose final line went out is over for the client, even if the worker is still tidying up.
-  bool running = running_ && running_reply_ && !running_reply_->finished();
-  if (running || !queue_.empty()) {
-    reply->error("busy", std::string("a job is running (") +
-                             command_name(running ? running_->command : queue_.front().request.command) + ")");
+  if (const char* busy = busy_locked()) {
+    reply->error("busy", std::string("a job is running (") + busy + ")");
     return;
   }
+  queue_.push_back({request, reply});
+  cv_.notify_all();
+}
+
+const char* Machine::busy_locked() const {
+  // A job whose final line went out is over for the client, even if the worker is still tidying up.
+  bool running = running_ && running_reply_ && !running_reply_->finished();
+  if (running) return command_name(running_->command);
+  if (!queue_.empty()) return command_name(queue_.front().request.command);
+  return nullptr;
+}
+
+void Machine::start_pressed() {
+  const auto& d = config_.daemon;
+  if (d.start_pick.empty()) {
+    spdlog::warn("start button: pressed, but daemon.start_pick is empty; ignored");
+    return;
+  }
+  Request request;
+  request.command = Command::Pick;
+  request.name = d.start_pick;
+  request.place = d.start_place;
+  // No client is attached: the job's events and its final line go to the log.
+  auto reply = std::make_shared<Reply>(nullptr, Command::Pick);
+  reply->log_to("start button");
+  std::lock_guard lock(mutex_);
+  if (stopping_) {
+    spdlog::warn("start button: pressed while shutting down; ignored");
+    return;
+  }
+  if (const char* busy = busy_locked()) {
+    spdlog::warn("start button: pressed while a job is running ({}); ignored", busy);
+    return;
+  }
+  spdlog::info("start button: pick {} --place {}", d.start_pick, d.start_place);
   queue_.push_back({request, reply});
   cv_.notify_all();
 }

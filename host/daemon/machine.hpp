@@ -19,8 +19,10 @@ namespace rbx1::daemon {
 
 class Machine {
  public:
-  // estop_source: the e-stop line's edges from a test or bench (gpio::SimEdgeSource) instead of [gpio] estop.
-  explicit Machine(Config config, std::unique_ptr<gpio::EdgeSource> estop_source = nullptr);
+  // estop_source / start_source: the e-stop line's and the start button's edges from a test or bench
+  // (gpio::SimEdgeSource) instead of [gpio] estop / start_button.
+  explicit Machine(Config config, std::unique_ptr<gpio::EdgeSource> estop_source = nullptr,
+                   std::unique_ptr<gpio::EdgeSource> start_source = nullptr);
   ~Machine();
 
   // Opens the camera and the vision pipeline (errors are fatal: bad files), starts the GPIO watcher and the
@@ -30,6 +32,9 @@ class Machine {
   void handle(const Request& request, std::shared_ptr<Reply> reply);
   // E-stop from any source ("control", "gpio"): ESTOP on the wire first, then the job is aborted.
   void estop(const std::string& source);
+  // The start button was pressed: when idle, queues `pick [daemon] start_pick --place start_place` (its events go
+  // to the log); while a job runs, or without a start_pick, the press is ignored with a log line.
+  void start_pressed();
   // Stops the worker: a running job is aborted with a controlled STOP.
   void stop();
   // Called (server thread) when a shutdown request arrives, after its reply.
@@ -55,6 +60,7 @@ class Machine {
   // Capture + detect at the scan pose; false after reply.error.
   bool capture_and_detect(Reply& reply, nlohmann::json& detections, std::string& report);
   bool ready(Reply& reply);
+  const char* busy_locked() const;  // the running or queued job's command, or null (mutex_ held)
   MotionHooks hooks(Reply& reply);
   nlohmann::json status_reply();
   void note_status(const rbx1_status_resp& s);
@@ -65,6 +71,8 @@ class Machine {
   std::unique_ptr<vision::Vision> vision_;
   std::unique_ptr<gpio::EdgeSource> estop_source_;
   std::unique_ptr<gpio::InputWatcher> estop_input_;
+  std::unique_ptr<gpio::EdgeSource> start_source_;
+  std::unique_ptr<gpio::InputWatcher> start_input_;
   std::unique_ptr<gpio::OutputLine> status_led_;
   void set_led(bool ready);
 

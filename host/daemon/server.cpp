@@ -53,6 +53,8 @@ double Reply::elapsed_ms() const {
 }
 
 void Reply::write_line(const nlohmann::json& j) {
+  if (!log_tag_.empty())
+    spdlog::info("{}: {}", log_tag_, j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
   if (!fd_ || *fd_ < 0) return;
   // Replace invalid UTF-8 rather than throw: a file name or label must never kill the daemon.
   std::string data = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";

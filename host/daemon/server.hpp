@@ -24,6 +24,8 @@ class Reply {
   void error(const std::string& code, const std::string& message);
   bool finished() const { return finished_; }
   Command command() const { return command_; }
+  // Also log every line (spdlog, info) prefixed with tag: a job without a client (the start button).
+  void log_to(std::string tag) { log_tag_ = std::move(tag); }
   double elapsed_ms() const;
 
  private:
@@ -34,6 +36,7 @@ class Reply {
   std::chrono::steady_clock::time_point start_;
   std::mutex mutex_;
   std::atomic<bool> finished_{false};
+  std::string log_tag_;
 };
 
 // UTC wall-clock time as "2026-11-22T01:02:03.456Z".
