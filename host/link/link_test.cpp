@@ -185,8 +185,10 @@ TEST_F(LinkTest, DuplicateAndStaleResponsesAreDiscarded) {
   EXPECT_EQ(s.status, RBX1_OK);
   EXPECT_EQ(s.moves_done, 3);  // the STATUS answer, not a late MOVE duplicate
   std::this_thread::sleep_for(milliseconds(30));
-  // 4 requests: each had one stale response before and one duplicate after.
-  EXPECT_EQ(delta().stale, 8u);
+  // 4 requests: each had one stale response before and one duplicate after. On a loaded machine one late
+  // answer to a retransmitted handshake HELLO can also land after SetUp took its baseline: at most one more.
+  EXPECT_GE(delta().stale, 8u);
+  EXPECT_LE(delta().stale, 9u);
   EXPECT_EQ(delta().retransmissions, 0u);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 3);
 }
