@@ -14,7 +14,11 @@ ELF = os.environ.get("AVRSIM_TEST_ELF", "")
 CYCLES_PER_TICK = 1600  # testfw's TIMER1 period: 10 kHz at 16 MHz
 STEP_VECTOR = 17        # TIMER1_COMPA on the ATmega2560
 
-pytestmark = pytest.mark.skipif(not ELF or not os.path.exists(ELF), reason="test ELF not built (avr-gcc missing?)")
+@pytest.fixture(autouse=True)
+def _test_elf_built():
+    # The CMake build makes it with avr-gcc before rbx1-avrsim: missing means a broken build, not a pass.
+    if not ELF or not os.path.exists(ELF):
+        pytest.fail(f"the avrsim test ELF ({ELF or 'AVRSIM_TEST_ELF unset'}) is not built: run make first")
 
 
 class Sim:
