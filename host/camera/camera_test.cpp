@@ -173,6 +173,7 @@ TEST(V4L2, RealDeviceWhenPresent) {
   for (int i = 0; i < 64 && device.empty(); ++i)
     if (access(("/dev/video" + std::to_string(i)).c_str(), F_OK) == 0) device = "/dev/video" + std::to_string(i);
   if (device.empty()) GTEST_SKIP() << "no /dev/video* on this machine: real-camera test skipped";
+  int opened = 0;
   for (const char* format : {"YUYV", "MJPEG"}) {
     CameraConfig c{device, 640, 480, 30, format};
     std::string error;
@@ -181,6 +182,7 @@ TEST(V4L2, RealDeviceWhenPresent) {
       std::printf("%s: %s\n", format, error.c_str());  // a camera may offer only one of the two
       continue;
     }
+    ++opened;
     cv::Mat f;
     int r = 0;
     for (int i = 0; i < 5; ++i) r = src->read(f);  // the first frames of some cameras are dark or partial
@@ -188,6 +190,7 @@ TEST(V4L2, RealDeviceWhenPresent) {
     EXPECT_EQ(f.type(), CV_8UC3);
     EXPECT_GT(f.cols, 0);
   }
+  EXPECT_GT(opened, 0) << device << ": neither YUYV nor MJPEG could be opened";
 }
 
 TEST(CameraConfig, ParsesAndChecks) {

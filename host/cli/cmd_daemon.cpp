@@ -1,4 +1,7 @@
 // cmd_daemon.cpp - rbx1 status|scan|pick|home|estop|clear-fault|shutdown: the rbx1d control socket client.
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
@@ -14,8 +17,20 @@ namespace {
 struct DaemonOptions {
   std::string socket;
   bool json = false;
+  double timeout_s = -1;  // --timeout; < 0: the command's default
   std::string name, place;
 };
+
+// How long a command waits for its final line by default: status, estop and shutdown are answered at once (a
+// daemon that does not answer them in 10 s is stuck, and the operator must know); jobs take as long as they take.
+double default_timeout_s(daemon::Command c) {
+  switch (c) {
+    case daemon::Command::Status:
+    case daemon::Command::Estop:
+    case daemon::Command::Shutdown: return 10;
+    default: return 0;
+  }
+}
 
 std::string default_socket() {
   const char* env = std::getenv("RBX1_SOCKET");
@@ -70,9 +85,19 @@ int run(const DaemonOptions& o, const daemon::Request& request) {
     std::fprintf(stderr, "rbx1: %s: send failed (%d)\n", o.socket.c_str(), r);
     return 2;
   }
+  double timeout_s = o.timeout_s >= 0 ? o.timeout_s : default_timeout_s(request.command);
+  auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   std::string line;
   for (;;) {
-    int r = client.read_line(line);
+    int wait_ms = -1;
+    if (timeout_s > 0)
+      wait_ms = int(std::max<int64_t>(0, std::chrono::duration_cast<std::chrono::milliseconds>(
+                                              deadline - std::chrono::steady_clock::now()).count()));
+    int r = client.read_line(line, wait_ms);
+    if (r == -ETIMEDOUT) {
+      std::fprintf(stderr, "rbx1: %s: no reply within %g s (--timeout)\n", o.socket.c_str(), timeout_s);
+      return 2;
+    }
     if (r < 0) {
       std::fprintf(stderr, "rbx1: %s: connection closed before the reply ended\n", o.socket.c_str());
       return 2;
@@ -104,6 +129,10 @@ CLI::App* add(CLI::App& app, std::shared_ptr<DaemonOptions> o, const char* name,
   CLI::App* sub = app.add_subcommand(name, help);
   sub->add_option("--socket", o->socket, "rbx1d control socket (default $RBX1_SOCKET or /run/rbx1/rbx1d.sock)");
   sub->add_flag("--json", o->json, "print the raw JSON event lines");
+  sub->add_option("--timeout", o->timeout_s,
+                  "seconds to wait for the final reply line, 0 = no limit (default 10 for status, estop and "
+                  "shutdown, no limit for jobs); exit 2 when it passes")
+      ->check(CLI::NonNegativeNumber);
   return sub;
 }
 

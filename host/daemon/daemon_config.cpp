@@ -28,6 +28,7 @@ void parse_daemon_config(config::Section s, DaemonConfig& out) {
   out.job_timeout_s = s.number("job_timeout_s", out.job_timeout_s, 1, 86400);
   out.reconnect_timeout_s = s.number("reconnect_timeout_s", out.reconnect_timeout_s, 0.1, 3600);
   out.status_poll_ms = int(s.integer("status_poll_ms", out.status_poll_ms, 5, 500));
+  out.idle_timeout_s = s.number("idle_timeout_s", out.idle_timeout_s, 0.1, 86400);
   out.annotate = s.string("annotate", out.annotate);
   out.start_pick = s.string("start_pick", out.start_pick);
   if (!printable(out.start_pick))

@@ -16,6 +16,7 @@ struct DaemonConfig {
   double job_timeout_s = 300;       // a whole job (scan, pick, home)
   double reconnect_timeout_s = 30;  // how long a vanished link may stay away before the job fails
   int status_poll_ms = 50;          // STATUS polling while waiting for motion (also the heartbeat then)
+  double idle_timeout_s = 60;       // a control connection with no request open and nothing sent is closed
   std::string annotate;             // if set, each scan writes the annotated image (Figure 20) here
   std::string start_pick;           // [gpio] start_button runs `pick start_pick --place start_place`; "" = none
   std::string start_place = "tray";

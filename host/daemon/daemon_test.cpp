@@ -1,5 +1,5 @@
-// daemon_test.cpp - request parsing, the control socket (framing, limits, error replies, mode), [daemon] config,
-// and the start button driving a Machine against rbx1-simfw.
+// daemon_test.cpp - request parsing, [daemon] config, and the start button driving a Machine against rbx1-simfw
+// (the control socket's tests are in server_test.cpp).
 
 #include <signal.h>
 #include <spawn.h>
@@ -8,6 +8,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <thread>
@@ -69,108 +70,6 @@ TEST(Request, RejectsMalformedLines) {
   EXPECT_EQ(parse_error(R"({"cmd":"status","name":"x"})"), "bad_field");
   EXPECT_EQ(parse_error(std::string(kMaxRequestLine + 1, ' ')), "line_too_long");
   EXPECT_EQ(parse_error("\xff\xfe"), "bad_json");
-}
-
-class ServerTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    path_ = "/tmp/rbx1-daemon-test-" + std::to_string(getpid()) + ".sock";
-    std::string error;
-    ASSERT_EQ(server_.open(path_, 0660, error), 0) << error;
-    thread_ = std::thread([this] {
-      server_.run([this](const Request& r, std::shared_ptr<Reply> reply) {
-        ++handled_;
-        if (r.command == Command::Scan) reply->event("step", {{"n", 1}});
-        reply->result({{"cmd", command_name(r.command)}, {"name", r.name}});
-      });
-    });
-  }
-  void TearDown() override {
-    server_.stop();
-    thread_.join();
-  }
-  nlohmann::json roundtrip(control::Client& c, const std::string& line) {
-    EXPECT_EQ(c.send_line(line), 0);
-    std::string reply;
-    EXPECT_EQ(c.read_line(reply, 2000), 0);
-    return nlohmann::json::parse(reply);
-  }
-  std::string path_;
-  Server server_;
-  std::thread thread_;
-  std::atomic<int> handled_{0};
-};
-
-TEST_F(ServerTest, SocketModeIs0660) {
-  struct stat st {};
-  ASSERT_EQ(::stat(path_.c_str(), &st), 0);
-  EXPECT_EQ(st.st_mode & 0777, 0660u);
-}
-
-TEST_F(ServerTest, StreamsEventsThenOneFinalLine) {
-  control::Client c;
-  std::string error;
-  ASSERT_EQ(c.connect(path_, error), 0) << error;
-  Request r;
-  r.command = Command::Scan;
-  ASSERT_EQ(c.send(r), 0);
-  std::string line;
-  ASSERT_EQ(c.read_line(line, 2000), 0);
-  auto ev = nlohmann::json::parse(line);
-  EXPECT_EQ(ev["event"], "step");
-  EXPECT_EQ(ev["n"], 1);
-  EXPECT_TRUE(ev["ts"].is_string());
-  EXPECT_TRUE(ev["t_ms"].is_number());
-  EXPECT_FALSE(control::is_final(ev));
-  ASSERT_EQ(c.read_line(line, 2000), 0);
-  auto fin = nlohmann::json::parse(line);
-  EXPECT_TRUE(control::is_final(fin));
-  EXPECT_EQ(fin["result"]["cmd"], "scan");
-}
-
-TEST_F(ServerTest, MalformedLinesGetErrorsAndTheConnectionSurvives) {
-  control::Client c;
-  std::string error;
-  ASSERT_EQ(c.connect(path_, error), 0) << error;
-  EXPECT_EQ(roundtrip(c, "not json")["error"]["code"], "bad_json");
-  EXPECT_EQ(roundtrip(c, R"({"cmd":"fly"})")["error"]["code"], "unknown_command");
-  EXPECT_EQ(roundtrip(c, R"({"cmd":"pick"})")["error"]["code"], "missing_field");
-  EXPECT_EQ(roundtrip(c, std::string(100000, 'x'))["error"]["code"], "line_too_long");
-  EXPECT_EQ(roundtrip(c, R"({"cmd":"pick","name":"bolt","place":"tray"})")["result"]["name"], "bolt");
-  EXPECT_EQ(handled_, 1);
-}
-
-TEST_F(ServerTest, ServesManyClientsConnectingAtOnce) {
-  // Connections accepted while others are served must be polled from the next round on (a past bug read
-  // their events from beyond the poll array and dropped them).
-  std::vector<std::unique_ptr<control::Client>> clients;
-  for (int i = 0; i < 20; ++i) {
-    auto c = std::make_unique<control::Client>();
-    std::string error;
-    ASSERT_EQ(c->connect(path_, error), 0) << error;
-    ASSERT_EQ(c->send_line(R"({"cmd":"home"})"), 0);
-    clients.push_back(std::move(c));
-  }
-  for (auto& c : clients) {
-    std::string line;
-    ASSERT_EQ(c->read_line(line, 2000), 0);
-    EXPECT_EQ(nlohmann::json::parse(line)["result"]["cmd"], "home");
-  }
-  EXPECT_EQ(handled_, 20);
-}
-
-TEST_F(ServerTest, ReplacesAStaleSocketButNotALiveOne) {
-  Server second;
-  std::string error;
-  EXPECT_EQ(second.open(path_, 0660, error), -EADDRINUSE);
-  EXPECT_NE(error.find("another rbx1d"), std::string::npos) << error;
-}
-
-TEST(ClientTest, ConnectErrorNamesThePath) {
-  control::Client c;
-  std::string error;
-  EXPECT_LT(c.connect("/tmp/rbx1-no-such-daemon.sock", error), 0);
-  EXPECT_NE(error.find("/tmp/rbx1-no-such-daemon.sock"), std::string::npos);
 }
 
 TEST(DaemonConfig, DefaultsAndErrorsNameTheKey) {
@@ -277,34 +176,15 @@ class Simfw {
   std::string port_;
 };
 
-// One request through Machine::handle, its reply read from a socketpair until the final line.
+// One request through Machine::handle (the in-process request layer), its final line.
 nlohmann::json call(Machine& m, Command c) {
-  int sv[2];
-  if (socketpair(AF_UNIX, SOCK_STREAM, 0, sv) < 0) return nullptr;
-  auto fd = std::shared_ptr<int>(new int(sv[0]), [](int* p) { ::close(*p); delete p; });
   Request r;
   r.command = c;
-  m.handle(r, std::make_shared<Reply>(fd, c));
-  std::string buf;
-  char chunk[4096];
-  nlohmann::json out;
-  for (;;) {
-    size_t nl = buf.find('\n');
-    if (nl != std::string::npos) {
-      auto j = nlohmann::json::parse(buf.substr(0, nl), nullptr, false);
-      buf.erase(0, nl + 1);
-      if (control::is_final(j)) {
-        out = j;
-        break;
-      }
-      continue;
-    }
-    ssize_t n = ::read(sv[1], chunk, sizeof chunk);
-    if (n <= 0) break;
-    buf.append(chunk, size_t(n));
-  }
-  ::close(sv[1]);
-  return out;
+  auto q = submit([&m](const Request& req, std::shared_ptr<Reply> reply) { m.handle(req, std::move(reply)); }, r);
+  std::vector<nlohmann::json> events;
+  nlohmann::json final;
+  if (!q->wait_final(events, final, 30000)) return nullptr;
+  return final;
 }
 
 // Waits up to timeout_ms for the status reply's "job" to satisfy pred.
@@ -392,4 +272,99 @@ TEST(DaemonStartButton, PressRunsTheConfiguredPickOnce) {
   EXPECT_EQ(count_lines(lines, "pressed while a job is running (pick); ignored"), 1u) << all;
   EXPECT_EQ(count_lines(lines, "\"event\":\"captured\""), 0u) << all;  // stopped on the way to the scan pose
   EXPECT_EQ(count_lines(lines, R"(start button: {"error":{"code":"estop")"), 1u) << all;
+}
+
+// The host's GPIO e-stop path during a pick: an edge on the e-stop line (the simulated backend behind the same
+// InputWatcher as libgpiod's) puts ESTOP on the wire (the firmware latches ESTOP_COMMAND, which only an ESTOP frame
+// sets; its own input would set ESTOP_INPUT), aborts the job with an `estop` event naming gpio and error `estop`,
+// and the arm stands short of the move's target; jobs are refused until the line is released and the fault cleared.
+// The status LED (a simulated output line) is lit exactly while the daemon is ready.
+TEST(DaemonGpioEstop, EdgeDuringAPickStopsTheArmAndAbortsTheJob) {
+  Simfw sim;
+  ASSERT_FALSE(sim.port().empty()) << RBX1_SIMFW_BIN << " printed no pty path";
+  Config config;
+  config::Errors errors;
+  Overrides o;
+  o.port = sim.port();
+  ASSERT_TRUE(load_config(RBX1_DATA_DIR "/rbx1.toml", o, config, errors)) << errors.joined();
+  config.gpio.estop.active_low = false;
+  config.gpio.estop.debounce_ms = 5;
+  auto source = std::make_unique<gpio::SimEdgeSource>(false);
+  gpio::SimEdgeSource* line = source.get();
+  auto led_line = std::make_unique<gpio::SimOutputLine>();
+  gpio::SimOutputLine* led = led_line.get();
+  Machine machine(config, std::move(source), nullptr, std::move(led_line));
+  std::string error;
+  ASSERT_EQ(machine.start(error), 0) << error;
+  EXPECT_GE(led->writes(), 1) << "the LED was not put in a known state at start";
+  bool ready = false;
+  for (int i = 0; i < 200 && !ready; ++i) {
+    auto st = call(machine, Command::Status);
+    ready = st.is_object() && st["result"].value("ready", false);
+    if (!ready) std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  ASSERT_TRUE(ready);
+  EXPECT_TRUE(led->value()) << "the status LED is dark while the daemon is ready";
+
+  Handler handler = [&machine](const Request& r, std::shared_ptr<Reply> reply) { machine.handle(r, std::move(reply)); };
+  Request pick;
+  pick.command = Command::Pick;
+  pick.name = "l_shape";
+  pick.place = "tray";
+  auto q = submit(handler, pick);
+  nlohmann::json ev, moving;
+  while (q->next(ev, 10000)) {
+    ASSERT_FALSE(control::is_final(ev)) << "the pick ended before it moved: " << ev.dump();
+    if (ev.value("event", "") == "step" && ev.value("kind", "") == "move") {
+      moving = ev;
+      break;
+    }
+  }
+  ASSERT_TRUE(moving.is_object()) << "no move started within 10 s";
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // under way, far from its end at 20 deg/s
+  line->inject(true);                                          // the e-stop pressed
+
+  std::vector<nlohmann::json> events;
+  nlohmann::json final;
+  ASSERT_TRUE(q->wait_final(events, final, 5000)) << "the job did not end within 5 s of the e-stop edge";
+  EXPECT_FALSE(led->value()) << "the status LED stays lit after the e-stop";
+  EXPECT_EQ(final["error"]["code"], "estop") << final.dump();
+  size_t estop_events = 0, done_after = 0;
+  for (const auto& e : events) {
+    if (e.value("event", "") == "estop") {
+      ++estop_events;
+      EXPECT_EQ(e["source"], "gpio") << e.dump();
+    }
+    if (e.value("event", "") == "step_done" && e.value("step", 0) >= moving.value("step", 0)) ++done_after;
+  }
+  EXPECT_EQ(estop_events, 1u);
+  EXPECT_EQ(done_after, 0u) << "the interrupted move was reported done";
+
+  // Latched: FAULT with ESTOP_COMMAND, and the arm no longer moves (the idle STATUS refreshes the cache).
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  auto st1 = call(machine, Command::Status)["result"];
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  auto st2 = call(machine, Command::Status)["result"];
+  ASSERT_TRUE(st2["firmware"].is_object()) << st2.dump();
+  EXPECT_EQ(st2["firmware"]["state"], "FAULT") << st2.dump();
+  auto faults = st2["firmware"]["faults"];
+  EXPECT_NE(std::find(faults.begin(), faults.end(), "ESTOP_COMMAND"), faults.end()) << st2.dump();
+  EXPECT_EQ(std::find(faults.begin(), faults.end(), "ESTOP_INPUT"), faults.end()) << st2.dump();
+  EXPECT_EQ(st1["firmware"]["position"], st2["firmware"]["position"]) << "the arm still moves after the e-stop";
+  EXPECT_NE(st2["firmware"]["position"], moving["target"]) << "the interrupted move completed";
+  EXPECT_EQ(st2["last_estop"], "gpio");
+  EXPECT_EQ(st2["ready"], false);
+
+  auto home = call(machine, Command::Home);
+  std::string code = home["error"].value("code", "");
+  EXPECT_TRUE(code == "fault" || code == "estop") << home.dump();
+  line->inject(false);  // released
+  std::this_thread::sleep_for(std::chrono::milliseconds(30));
+  auto cleared = call(machine, Command::ClearFault);
+  EXPECT_EQ(cleared["result"]["cleared"], true) << cleared.dump();
+  for (int i = 0; i < 100 && !led->value(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_TRUE(led->value()) << "the status LED did not come back on after clear_fault";
+  EXPECT_EQ(call(machine, Command::Status)["result"]["ready"], true);
+  machine.stop();
+  EXPECT_FALSE(led->value()) << "the status LED stays lit after the daemon stopped";
 }

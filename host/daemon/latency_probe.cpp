@@ -1,9 +1,6 @@
 // latency_probe.cpp - bench helper for tools/bench/daemon-latency: runs the daemon's Machine in-process with a
 // simulated e-stop line, injects e-stop edges and prints their CLOCK_MONOTONIC times; measures a bare link round
 // trip (STATUS) first as the baseline. The bench script timestamps the frames on the wire (tests/e2e/ptyproxy.py).
-#include <sys/socket.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -20,32 +17,17 @@
 using namespace rbx1;
 
 namespace {
-// One request through Machine::handle, its reply read from a socketpair until the final line.
+// One request through Machine::handle (the in-process request layer), its final line.
 nlohmann::json call(daemon::Machine& m, daemon::Command c) {
-  int sv[2];
-  if (socketpair(AF_UNIX, SOCK_STREAM, 0, sv) < 0) return nullptr;
-  auto fd = std::shared_ptr<int>(new int(sv[0]), [](int* p) { ::close(*p); delete p; });
   daemon::Request r;
   r.command = c;
-  m.handle(r, std::make_shared<daemon::Reply>(fd, c));
-  std::string buf;
-  char chunk[4096];
-  for (;;) {
-    size_t nl;
-    while ((nl = buf.find('\n')) != std::string::npos) {
-      auto j = nlohmann::json::parse(buf.substr(0, nl), nullptr, false);
-      buf.erase(0, nl + 1);
-      if (control::is_final(j)) {
-        ::close(sv[1]);
-        return j;
-      }
-    }
-    ssize_t n = ::read(sv[1], chunk, sizeof chunk);
-    if (n <= 0) break;
-    buf.append(chunk, size_t(n));
-  }
-  ::close(sv[1]);
-  return nullptr;
+  auto q = daemon::submit([&m](const daemon::Request& req, std::shared_ptr<daemon::Reply> reply) {
+    m.handle(req, std::move(reply));
+  }, r);
+  std::vector<nlohmann::json> events;
+  nlohmann::json final;
+  if (!q->wait_final(events, final, 30000)) return nullptr;
+  return final;
 }
 }  // namespace
 

@@ -24,8 +24,11 @@ int64_t mono_ns() {
 }  // namespace
 
 Machine::Machine(Config config, std::unique_ptr<gpio::EdgeSource> estop_source,
-                 std::unique_ptr<gpio::EdgeSource> start_source)
-    : config_(std::move(config)), estop_source_(std::move(estop_source)), start_source_(std::move(start_source)) {}
+                 std::unique_ptr<gpio::EdgeSource> start_source, std::unique_ptr<gpio::OutputLine> status_led)
+    : config_(std::move(config)),
+      estop_source_(std::move(estop_source)),
+      start_source_(std::move(start_source)),
+      status_led_(std::move(status_led)) {}
 
 int Machine::start_gpio(std::string& error) {
   const auto& g = config_.gpio;
@@ -46,11 +49,11 @@ int Machine::start_gpio(std::string& error) {
     }
     spdlog::info("gpio: e-stop on {}", estop_input_->describe());
   }
-  if (g.status_led.configured()) {
+  if (!status_led_ && g.status_led.configured()) {
     status_led_ = gpio::open_output("status_led", g.status_led, error);
     if (!status_led_) return -ENODEV;
-    status_led_->set(false);
   }
+  set_led(false);
   // The start button: the same watcher (debounce, active-low) as the e-stop; a press (the debounced edge to
   // active) runs the configured pick. load_config insists on [daemon] start_pick when the line is configured.
   if (start_source_) {
@@ -117,6 +120,7 @@ void Machine::estop(const std::string& source) {
   // The frame first: nothing (no lock, no log) may delay it.
   rbx1_estop_resp resp{};
   int r = link_.estop(resp);
+  set_led(false);  // latched: not ready until clear_fault
   {
     std::lock_guard lock(mutex_);
     last_estop_ = source;
@@ -365,6 +369,10 @@ void Machine::worker() {
       int r = link_.status(st);
       if (r == 0) note_status(st);
       else spdlog::warn("link: idle STATUS failed ({})", r);
+      if (r == 0) {
+        std::lock_guard relock(mutex_);
+        set_led(prepared_ && st.state != RBX1_STATE_FAULT);  // lit exactly while status says ready
+      }
       if (r == 0 && st.homed != 0x3F) {
         // A reset board (power, watchdog, USB re-plug) no longer knows where the arm is; neither does the
         // daemon. Declaring the home pose again is the operator's call, not ours.
@@ -446,6 +454,12 @@ MotionHooks Machine::hooks(Reply& reply) {
 bool Machine::run_steps(Reply& reply, const std::vector<MotionStep>& steps, MotionResult& result) {
   Motion motion(link_, {config_.daemon.status_poll_ms, config_.daemon.move_timeout_s, config_.daemon.reconnect_timeout_s});
   result = motion.run(steps, hooks(reply));
+  if (!result.ok && result.code != "estop" && link_.connected()) {
+    // A failed job (timeout, shutdown, a refused step) leaves nothing running behind it: STOP flushes what it
+    // queued. The e-stop already halted everything.
+    rbx1_stop_resp sr{};
+    if (int r = link_.stop(sr); r < 0) spdlog::warn("job failed ({}): STOP not acknowledged ({})", result.code, r);
+  }
   if (!result.ok) {
     if (result.code == "estop") reply.event("estop", {{"source", last_estop_.empty() ? "firmware" : last_estop_},
                                                       {"firmware", status_json(result.last)}});

@@ -19,10 +19,11 @@ namespace rbx1::daemon {
 
 class Machine {
  public:
-  // estop_source / start_source: the e-stop line's and the start button's edges from a test or bench
-  // (gpio::SimEdgeSource) instead of [gpio] estop / start_button.
+  // estop_source / start_source / status_led: the e-stop line's and the start button's edges, and the LED, from a
+  // test or bench (gpio::SimEdgeSource, gpio::SimOutputLine) instead of [gpio] estop / start_button / status_led.
   explicit Machine(Config config, std::unique_ptr<gpio::EdgeSource> estop_source = nullptr,
-                   std::unique_ptr<gpio::EdgeSource> start_source = nullptr);
+                   std::unique_ptr<gpio::EdgeSource> start_source = nullptr,
+                   std::unique_ptr<gpio::OutputLine> status_led = nullptr);
   ~Machine();
 
   // Opens the camera and the vision pipeline (errors are fatal: bad files), starts the GPIO watcher and the

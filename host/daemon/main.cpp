@@ -56,6 +56,9 @@ int main(int argc, char** argv) {
     spdlog::error("control socket: {}", error);
     return 1;
   }
+  rbx1::daemon::ServerLimits limits;
+  limits.idle_timeout_ms = int(config.daemon.idle_timeout_s * 1000);
+  server.set_limits(limits);
   rbx1::daemon::Machine machine(config);
   if (machine.start(error) < 0) {
     spdlog::error("{}", error);

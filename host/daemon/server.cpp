@@ -1,4 +1,5 @@
-// server.cpp - poll() loop over the listening socket and its clients; line framing, length limit, error replies.
+// server.cpp - poll() loop over the listening socket and its clients: line framing, length limit, per-client
+// bounded output buffers with non-blocking writes, e-stop first, idle timeout, room for every new connection.
 #include "server.hpp"
 
 #include <fcntl.h>
@@ -9,10 +10,13 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
-#include <cmath>
+#include <chrono>
 #include <cstring>
-#include <ctime>
+#include <deque>
+#include <memory>
+#include <mutex>
 #include <vector>
 
 #include <spdlog/spdlog.h>
@@ -20,79 +24,134 @@
 namespace rbx1::daemon {
 
 namespace {
-constexpr size_t kMaxClients = 32;
+constexpr size_t kReadChunk = 4096;
+constexpr int kAcceptPerRound = 64;
 
-struct Client {
-  std::shared_ptr<int> fd;  // shared with the replies that may outlive the connection's reading side
-  std::string buffer;
-  bool discarding = false;  // after an overlong line: drop bytes until the next newline
+int64_t now_ms() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+void wake(int fd) {
+  uint64_t one = 1;
+  [[maybe_unused]] ssize_t n = ::write(fd, &one, sizeof one);
+}
+
+// One connection as the replies see it: they write from any thread (the server's, the job worker's) and never
+// wait. What the socket does not take at once waits in `out` for the server thread to send when it can.
+struct Connection {
+  std::mutex mu;
+  int fd = -1;         // -1 once closed: later reply lines are dropped
+  int wake_fd = -1;    // the server's eventfd: output is waiting, or the connection must go
+  size_t max_output = 0;
+  std::string out;     // reply bytes the socket has not taken yet
+  const char* drop = nullptr;  // why the server must close it: output overflowed, or the peer is gone
+  int open_replies = 0;  // requests whose final line has not been written yet
+
+  // The replies' sink.
+  void write(const std::string& line, bool final) {
+    std::lock_guard lock(mu);
+    if (final && open_replies > 0) --open_replies;
+    if (fd < 0 || drop) return;
+    std::string data = line + "\n";
+    size_t off = 0;
+    if (out.empty()) {
+      ssize_t n = ::send(fd, data.data(), data.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+      if (n < 0 && errno != EAGAIN && errno != EINTR) {
+        drop = "the peer is gone";
+        wake(wake_fd);
+        return;
+      }
+      off = n > 0 ? size_t(n) : 0;
+    }
+    if (off == data.size()) return;
+    if (out.size() + data.size() - off > max_output) {
+      drop = "its replies are not read";  // a client that does not read loses its connection, not others' time
+      out.clear();
+    } else {
+      out.append(data, off);
+    }
+    wake(wake_fd);
+  }
+
+  // Sends what the socket takes of out (server thread). False when the peer is gone.
+  bool flush() {
+    std::lock_guard lock(mu);
+    while (fd >= 0 && !out.empty()) {
+      ssize_t n = ::send(fd, out.data(), out.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+      if (n < 0) {
+        if (errno == EINTR) continue;
+        if (errno == EAGAIN) return true;
+        drop = "the peer is gone";
+        return false;
+      }
+      out.erase(0, size_t(n));
+    }
+    return true;
+  }
+
+  void close() {
+    std::lock_guard lock(mu);
+    if (fd >= 0) ::close(fd);
+    fd = -1;
+    out.clear();
+  }
 };
 
-void close_fd(int* fd) {
-  if (*fd >= 0) ::close(*fd);
-  delete fd;
-}
-}  // namespace
+// The server thread's side of a connection.
+struct Client {
+  std::shared_ptr<Connection> conn;
+  uint64_t id = 0;
+  std::string partial;             // bytes of a line not yet ended
+  std::deque<std::string> lines;   // complete request lines not yet handled
+  bool discarding = false;         // after an overlong line: drop bytes until the next newline
+  bool eof = false;                // the peer shut its writing side: answer what it sent, then close
+  int64_t last_active_ms = 0;
+};
 
-std::string iso_now() {
-  timespec ts{};
-  clock_gettime(CLOCK_REALTIME, &ts);
-  tm t{};
-  gmtime_r(&ts.tv_sec, &t);
-  char buf[40];
-  size_t n = std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%S", &t);
-  std::snprintf(buf + n, sizeof buf - n, ".%03ldZ", ts.tv_nsec / 1000000);
-  return buf;
+Reply::Sink sink_for(const std::shared_ptr<Connection>& conn) {
+  return [conn](const std::string& line, bool final) { conn->write(line, final); };
 }
 
-Reply::Reply(std::shared_ptr<int> fd, Command command)
-    : fd_(std::move(fd)), command_(command), start_(std::chrono::steady_clock::now()) {}
-
-double Reply::elapsed_ms() const {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start_).count();
+void submit(Client& c, const Handler& handler, const std::string& line) {
+  {
+    std::lock_guard lock(c.conn->mu);
+    ++c.conn->open_replies;
+  }
+  submit_line(handler, line, sink_for(c.conn));
 }
 
-void Reply::write_line(const nlohmann::json& j) {
-  if (!log_tag_.empty())
-    spdlog::info("{}: {}", log_tag_, j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
-  if (!fd_ || *fd_ < 0) return;
-  // Replace invalid UTF-8 rather than throw: a file name or label must never kill the daemon.
-  std::string data = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
-  size_t off = 0;
-  while (off < data.size()) {
-    ssize_t n = ::send(*fd_, data.data() + off, data.size() - off, MSG_NOSIGNAL);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      if (errno == EAGAIN) {  // slow reader: wait a little for room, never forever
-        pollfd p{*fd_, POLLOUT, 0};
-        if (::poll(&p, 1, 1000) > 0) continue;
+// True for a line that is an estop request (parsed in full: only a well-formed request counts).
+bool is_estop(const std::string& line) {
+  if (line.find("estop") == std::string::npos) return false;
+  Request r;
+  Error e;
+  return parse_request(line, r, e) && r.command == Command::Estop;
+}
+
+// Splits received bytes into lines; an overlong line is answered with line_too_long and skipped.
+void take_bytes(Client& c, const Handler& handler, const char* data, size_t n) {
+  for (size_t k = 0; k < n; ++k) {
+    char ch = data[k];
+    if (ch == '\n') {
+      if (c.discarding) {
+        c.discarding = false;
+      } else {
+        if (!c.partial.empty() && c.partial.back() == '\r') c.partial.pop_back();
+        if (!c.partial.empty()) c.lines.push_back(std::move(c.partial));
       }
-      return;  // client gone: the job goes on, its events are dropped
+      c.partial.clear();
+    } else if (!c.discarding) {
+      c.partial.push_back(ch);
+      if (c.partial.size() > kMaxRequestLine) {
+        submit(c, handler, c.partial);  // parse_request answers line_too_long
+        c.partial.clear();
+        c.discarding = true;
+      }
     }
-    off += size_t(n);
   }
 }
-
-void Reply::event(const std::string& name, nlohmann::json fields) {
-  std::lock_guard lock(mutex_);
-  if (finished_) return;
-  nlohmann::json j{{"ts", iso_now()}, {"t_ms", std::round(elapsed_ms() * 10) / 10}, {"event", name}};
-  if (fields.is_object())
-    for (auto& [k, v] : fields.items()) j[k] = v;
-  write_line(j);
-}
-
-void Reply::result(nlohmann::json result) {
-  std::lock_guard lock(mutex_);
-  if (finished_.exchange(true)) return;
-  write_line(result_reply(std::move(result)));
-}
-
-void Reply::error(const std::string& code, const std::string& message) {
-  std::lock_guard lock(mutex_);
-  if (finished_.exchange(true)) return;
-  write_line(error_reply({code, message}));
-}
+}  // namespace
 
 Server::~Server() {
   if (listen_fd_ >= 0) {
@@ -129,7 +188,7 @@ int Server::open(const std::string& path, unsigned mode, std::string& error) {
   }
   listen_fd_ = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
   if (listen_fd_ < 0 || ::bind(listen_fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) < 0 ||
-      ::chmod(path.c_str(), mode) < 0 || ::listen(listen_fd_, 16) < 0) {
+      ::chmod(path.c_str(), mode) < 0 || ::listen(listen_fd_, 128) < 0) {
     int e = errno;
     error = path + ": " + std::strerror(e);
     return -e;
@@ -145,88 +204,153 @@ int Server::open(const std::string& path, unsigned mode, std::string& error) {
 
 void Server::stop() {
   stopping_ = true;
-  if (wake_fd_ >= 0) {
-    uint64_t one = 1;
-    [[maybe_unused]] ssize_t n = ::write(wake_fd_, &one, sizeof one);
-  }
+  if (wake_fd_ >= 0) wake(wake_fd_);
 }
 
 int Server::run(const Handler& handler) {
   std::vector<Client> clients;
-  auto handle_line = [&](Client& c, const std::string& line) {
-    Request request;
-    Error err;
-    if (!parse_request(line, request, err)) {
-      spdlog::debug("control: rejected request: {}: {}", err.code, err.message);
-      Reply(c.fd, Command::Status).error(err.code, err.message);
-      return;
-    }
-    spdlog::info("control: request {}", request_json(request).dump());
-    handler(request, std::make_shared<Reply>(c.fd, request.command));
+  uint64_t next_id = 1;
+  auto open_replies = [](const Client& c) {
+    std::lock_guard lock(c.conn->mu);
+    return c.conn->open_replies;
   };
+  // Makes room for a new connection: the least recently active client leaves, one with nothing open first.
+  auto evict_one = [&] {
+    auto victim = clients.end();
+    bool victim_open = true;
+    for (auto it = clients.begin(); it != clients.end(); ++it) {
+      bool open = open_replies(*it) > 0 || !it->lines.empty();
+      if (victim == clients.end() || (victim_open && !open) ||
+          (open == victim_open && it->last_active_ms < victim->last_active_ms)) {
+        victim = it;
+        victim_open = open;
+      }
+    }
+    if (victim == clients.end()) return;
+    spdlog::info("control: client {} disconnected to make room (more than {} connections)", victim->id,
+                 limits_.max_clients);
+    victim->conn->write(error_reply({"busy", "disconnected: more than " + std::to_string(limits_.max_clients) +
+                                                 " control connections"}).dump(), false);
+    victim->conn->close();
+    clients.erase(victim);
+  };
+
   while (!stopping_) {
+    int64_t now = now_ms();
+    // Poll: a client with lines left over from the last round is served again at once.
+    bool backlog = false;
+    int timeout = 1000;
     std::vector<pollfd> fds;
     fds.push_back({wake_fd_, POLLIN, 0});
     fds.push_back({listen_fd_, POLLIN, 0});
-    for (auto& c : clients) fds.push_back({*c.fd, POLLIN, 0});
-    int r = ::poll(fds.data(), fds.size(), -1);
+    for (auto& c : clients) {
+      short events = 0;
+      if (c.lines.empty() && !c.eof) events |= POLLIN;  // a client's backlog is its own brake
+      {
+        std::lock_guard lock(c.conn->mu);
+        if (!c.conn->out.empty()) events |= POLLOUT;
+        if (c.conn->open_replies > 0) c.last_active_ms = now;
+      }
+      backlog |= !c.lines.empty();
+      timeout = int(std::min<int64_t>(timeout, std::max<int64_t>(0, c.last_active_ms + limits_.idle_timeout_ms - now)));
+      fds.push_back({c.conn->fd, events, 0});
+    }
+    int r = ::poll(fds.data(), fds.size(), backlog ? 0 : timeout);
     if (r < 0) {
       if (errno == EINTR) continue;
-      spdlog::error("control: poll: {}", std::strerror(errno));
-      return -errno;
+      int e = errno;
+      spdlog::error("control: poll: {}", std::strerror(e));
+      return -e;
     }
-    const size_t polled = clients.size();  // clients accepted below were not in this poll
-    if (fds[1].revents & POLLIN) {
-      int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
-      if (fd >= 0) {
-        auto shared = std::shared_ptr<int>(new int(fd), close_fd);
-        if (clients.size() >= kMaxClients) {
-          Reply(shared, Command::Status).error("busy", "too many control connections");
-        } else {
-          clients.push_back({shared, {}, false});
-        }
-      }
-    }
-    for (size_t i = 0; i < polled; ++i) {
-      short ev = fds[2 + i].revents;
-      if (!ev) continue;
-      Client& c = clients[i];
-      bool closed = false;
-      if (ev & POLLIN) {
-        char buf[4096];
-        ssize_t n = ::recv(*c.fd, buf, sizeof buf, 0);
-        if (n <= 0 && !(n < 0 && (errno == EAGAIN || errno == EINTR))) closed = true;
-        for (ssize_t k = 0; k < n; ++k) {
-          char ch = buf[k];
-          if (ch == '\n') {
-            if (c.discarding) {
-              c.discarding = false;
-            } else {
-              if (!c.buffer.empty() && c.buffer.back() == '\r') c.buffer.pop_back();
-              if (!c.buffer.empty()) handle_line(c, c.buffer);
-            }
-            c.buffer.clear();
-          } else if (!c.discarding) {
-            c.buffer.push_back(ch);
-            if (c.buffer.size() > kMaxRequestLine) {
-              Reply(c.fd, Command::Status)
-                  .error("line_too_long", "request longer than " + std::to_string(kMaxRequestLine) + " bytes");
-              c.buffer.clear();
-              c.discarding = true;
-            }
-          }
-        }
-      } else if (ev & (POLLHUP | POLLERR | POLLNVAL)) {
-        closed = true;
-      }
-      if (closed) c.fd.reset();  // replies still running keep the fd open until they finish
-    }
-    std::erase_if(clients, [](const Client& c) { return !c.fd; });
     if (fds[0].revents & POLLIN) {
       uint64_t v;
       [[maybe_unused]] ssize_t n = ::read(wake_fd_, &v, sizeof v);
     }
+    now = now_ms();
+    const size_t polled = clients.size();  // clients accepted below were not in this poll
+
+    // Read and send.
+    for (size_t i = 0; i < polled; ++i) {
+      short ev = fds[2 + i].revents;
+      Client& c = clients[i];
+      if (ev & POLLOUT) c.conn->flush();
+      if (ev & POLLIN) {
+        char buf[kReadChunk];
+        ssize_t n = ::recv(c.conn->fd, buf, sizeof buf, 0);
+        if (n > 0) {
+          c.last_active_ms = now;
+          take_bytes(c, handler, buf, size_t(n));
+        } else if (n == 0) {
+          c.eof = true;
+        } else if (errno != EAGAIN && errno != EINTR) {
+          std::lock_guard lock(c.conn->mu);
+          c.conn->drop = "the peer is gone";
+        }
+      }
+      if (ev & (POLLHUP | POLLERR | POLLNVAL)) {
+        std::lock_guard lock(c.conn->mu);
+        c.conn->drop = "the peer is gone";
+      }
+    }
+
+    // An e-stop first, wherever it waits.
+    for (auto& c : clients) {
+      for (auto it = c.lines.begin(); it != c.lines.end();) {
+        if (is_estop(*it)) {
+          std::string line = std::move(*it);
+          it = c.lines.erase(it);
+          submit(c, handler, line);
+        } else {
+          ++it;
+        }
+      }
+    }
+    // Then every client's requests, a bounded number each.
+    for (auto& c : clients)
+      for (size_t k = 0; k < limits_.requests_per_round && !c.lines.empty(); ++k) {
+        std::string line = std::move(c.lines.front());
+        c.lines.pop_front();
+        submit(c, handler, line);
+      }
+
+    // Close what must go: overflowed or vanished peers, finished half-closed ones, idle ones.
+    std::erase_if(clients, [&](Client& c) {
+      const char* drop;
+      bool done;
+      int open;
+      {
+        std::lock_guard lock(c.conn->mu);
+        drop = c.conn->drop;
+        open = c.conn->open_replies;
+        done = c.eof && open == 0 && c.lines.empty() && c.conn->out.empty();
+      }
+      bool idle = open == 0 && c.lines.empty() && now - c.last_active_ms >= limits_.idle_timeout_ms;
+      if (!drop && !done && !idle) return false;
+      if (drop) spdlog::log(std::strcmp(drop, "the peer is gone") ? spdlog::level::warn : spdlog::level::debug,
+                            "control: client {} disconnected: {}", c.id, drop);
+      else if (idle) spdlog::info("control: client {} idle for {} ms: disconnected", c.id, limits_.idle_timeout_ms);
+      c.conn->close();
+      return true;
+    });
+
+    // New connections: every one gets in; beyond max_clients the least recently active one makes room.
+    if (fds[1].revents & POLLIN) {
+      for (int k = 0; k < kAcceptPerRound; ++k) {
+        int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
+        if (fd < 0) break;
+        if (clients.size() >= limits_.max_clients) evict_one();
+        Client c;
+        c.conn = std::make_shared<Connection>();
+        c.conn->fd = fd;
+        c.conn->wake_fd = wake_fd_;
+        c.conn->max_output = limits_.max_output;
+        c.id = next_id++;
+        c.last_active_ms = now;
+        clients.push_back(std::move(c));
+      }
+    }
   }
+  for (auto& c : clients) c.conn->close();  // replies still running write nowhere from now on
   return 0;
 }
 

@@ -1,6 +1,10 @@
 // gpio_test.cpp - debounce, active-low, the simulated backend, config errors, and a real gpiochip when present.
 #include "gpio.hpp"
 
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <gpiod.h>
 
@@ -230,4 +234,68 @@ TEST(Gpiod, RealChipWhenPresent) {
   EXPECT_EQ(open_input("estop", bad, error), nullptr);
   EXPECT_NE(error.find("not found"), std::string::npos) << error;
   gpiod_chip_close(chip);
+}
+
+// Real edge events through libgpiod: a gpio-sim chip (configfs; Linux 5.17+ with CONFIG_GPIO_SIM, as root) is
+// made for the test, its line 0 pulled up and down from sysfs, and the e-stop watcher over the libgpiod backend
+// must report the press and the release. Skips, saying why, where gpio-sim cannot be had.
+namespace {
+bool write_file(const std::string& path, const std::string& text) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (!f) return false;
+  bool ok = std::fputs(text.c_str(), f) >= 0;
+  return std::fclose(f) == 0 && ok;
+}
+std::string read_word(const std::string& path) {
+  std::FILE* f = std::fopen(path.c_str(), "r");
+  if (!f) return "";
+  char buf[128] = {0};
+  if (!std::fgets(buf, sizeof buf, f)) buf[0] = 0;
+  std::fclose(f);
+  std::string s(buf);
+  while (!s.empty() && (s.back() == '\n' || s.back() == ' ')) s.pop_back();
+  return s;
+}
+}  // namespace
+
+TEST(Gpiod, EdgesFromAGpioSimChipReachTheWatcher) {
+  const std::string root = "/sys/kernel/config/gpio-sim";
+  if (!std::filesystem::is_directory(root))
+    GTEST_SKIP() << "no " << root << " (gpio-sim not loaded or configfs not mounted): real-edge test skipped";
+  const std::string dev = root + "/rbx1-test-" + std::to_string(getpid());
+  const std::string bank = dev + "/bank0";
+  ASSERT_TRUE(std::filesystem::create_directory(dev)) << dev;
+  struct Cleanup {
+    std::string dev, bank;
+    ~Cleanup() {
+      write_file(dev + "/live", "0");
+      std::filesystem::remove(bank);
+      std::filesystem::remove(dev);
+    }
+  } cleanup{dev, bank};
+  ASSERT_TRUE(std::filesystem::create_directory(bank));
+  ASSERT_TRUE(write_file(bank + "/num_lines", "4"));
+  ASSERT_TRUE(write_file(dev + "/live", "1")) << "cannot make the gpio-sim chip live";
+  std::string chip = read_word(bank + "/chip_name"), platform = read_word(dev + "/dev_name");
+  ASSERT_FALSE(chip.empty());
+  const std::string pull = "/sys/devices/platform/" + platform + "/" + chip + "/sim_gpio0/pull";
+  ASSERT_TRUE(write_file(pull, "pull-down"));
+
+  std::string error;
+  auto w = open_input("estop", LineConfig{chip, "0", false, 0}, error);
+  ASSERT_NE(w, nullptr) << error;
+  Recorder rec;
+  ASSERT_EQ(w->start(rec.callback()), 0);
+  int64_t t0 = monotonic_ns();
+  ASSERT_TRUE(write_file(pull, "pull-up"));  // pressed
+  auto ev = rec.wait_for(1, milliseconds(2000));
+  ASSERT_EQ(ev.size(), 1u) << "no event from the kernel's edge";
+  EXPECT_TRUE(ev[0].active);
+  EXPECT_EQ(ev[0].name, "estop");
+  EXPECT_GE(ev[0].timestamp_ns, t0) << "the kernel's edge time is CLOCK_MONOTONIC";
+  ASSERT_TRUE(write_file(pull, "pull-down"));  // released
+  ev = rec.wait_for(2, milliseconds(2000));
+  ASSERT_EQ(ev.size(), 2u);
+  EXPECT_FALSE(ev[1].active);
+  w->stop();
 }

@@ -3,8 +3,6 @@ counted per joint equal what the commanded targets require (sum of |target - pre
 signed count equals the final position."""
 import json
 
-import pytest
-
 import rbx1e2e as e2e
 from conftest import fast_config
 
@@ -12,10 +10,8 @@ AVR_DEG_S = 40.0  # slower than the simfw tests: the real step ISR under simavr,
 
 
 def test_full_pick_on_the_real_firmware(tmp_path, daemon_factory):
-    elf = e2e.ROOT / "build" / "firmware" / "rbx1.elf"
-    avrsim = e2e.BIN / "rbx1-avrsim"
-    if not elf.exists() or not avrsim.exists():
-        pytest.skip(f"needs {elf} and {avrsim} (make firmware; build rbx1-avrsim)")
+    e2e.need(e2e.ROOT / "build" / "firmware" / "rbx1.elf")  # both made by the build: missing is a failure
+    e2e.need(e2e.BIN / "rbx1-avrsim")
     out_json = tmp_path / "avrsim.json"
     sim = e2e.Simfw(tmp_path, "--json", out_json, "--eeprom", tmp_path / "eeprom.bin", exe="rbx1-avrsim",
                     log_moves=False)

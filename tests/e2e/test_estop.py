@@ -35,6 +35,23 @@ def assert_stopped(d, sim, fault):
     return fw2
 
 
+def assert_interrupted(events, sim, fw, step):
+    """The move that was executing never completed: the firmware's log of completed entries ends before it (and
+    counts exactly moves_done entries), and the arm stands short of its target."""
+    planned = e2e.planned_waypoints(events)
+    index = next(i for i, w in enumerate(planned) if w["name"] == step)
+    target = planned[index]["target"]
+    log = sim.moves()
+    assert len(log) == fw["moves_done"], (len(log), fw)
+    assert all(not (e["kind"] == "move" and e["target"] == target) for e in log), f"{step} completed"
+    # The entries before it (and the scan pose move) did complete: the log is the plan's prefix.
+    done = [(e["kind"], e["target"] if e["kind"] == "move" else e.get("pulse_us")) for e in log[1:]]
+    want = [(w["kind"], w["target"] if w["kind"] == "move" else w["pulse_us"]) for w in planned[:index]]
+    assert done == want, (done, want)
+    assert fw["position"] != target, f"the arm reached the {step} target"
+    assert not e2e.events_named([e for e in events if e.get("name") == step], "step_done"), f"{step} reported done"
+
+
 def test_estop_request_mid_move(sim, daemon_factory):
     d = daemon_factory(sim.port)
     name = e2e.scene_labels()[0]
@@ -46,19 +63,16 @@ def test_estop_request_mid_move(sim, daemon_factory):
     assert e2e.events_named(out["events"], "estop"), [e["event"] for e in out["events"]]
     assert replies["estop"]["result"]["estop"] is True
     fw = assert_stopped(d, sim, "ESTOP_COMMAND")
-    # The carry move never completed: the log ends before it, and the arm stands short of its target.
-    planned = e2e.planned_waypoints(out["events"])
-    carry = next(w for w in planned if w["name"] == "carry")
-    log = sim.moves()
-    assert all(not (e["kind"] == "move" and e["target"] == carry["target"]) for e in log), "carry completed"
-    assert fw["position"] != carry["target"]
-    # Refused while latched, usable again after clear_fault.
+    assert_interrupted(out["events"], sim, fw, "carry")
+    # Refused while latched, usable again after clear_fault: home then ends exactly at the home pose.
     _, final = d.request({"cmd": "home"})
     assert final["error"]["code"] in ("fault", "estop"), final
     _, final = d.request({"cmd": "clear_fault"})
     assert "result" in final, final
     _, final = d.request({"cmd": "home"})
-    assert final["result"]["position"] == [0, 0, 0, 0, 0, 0] or "position" in final["result"]
+    home = e2e.home_steps(e2e.load_default_config()["arm"])
+    assert final["result"]["position"] == home, final
+    assert sim.moves()[-1]["target"] == home and sim.moves()[-1]["end"] == home
 
 
 def test_estop_input_mid_move(sim, daemon_factory):
@@ -69,7 +83,8 @@ def test_estop_input_mid_move(sim, daemon_factory):
     assert fired.is_set()
     assert out["final"]["error"]["code"] == "estop", out["final"]
     assert e2e.events_named(out["events"], "estop")
-    assert_stopped(d, sim, "ESTOP_INPUT")
+    fw = assert_stopped(d, sim, "ESTOP_INPUT")
+    assert_interrupted(out["events"], sim, fw, "lift")
     _, final = d.request({"cmd": "clear_fault"})
     assert final["error"]["code"] == "estop_active", final  # the input is still held
     sim.control("estop 0")
@@ -77,4 +92,4 @@ def test_estop_input_mid_move(sim, daemon_factory):
     _, final = d.request({"cmd": "clear_fault"})
     assert "result" in final, final
     _, final = d.request({"cmd": "home"})
-    assert "result" in final, final
+    assert final["result"]["position"] == e2e.home_steps(e2e.load_default_config()["arm"]), final

@@ -1,0 +1,88 @@
+// reply.hpp - the request layer shared by every control client (the Unix socket, the web console, tests): one
+// Reply per request (event lines, then one final line) written to a sink, and in-process submission.
+#pragma once
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "request.hpp"
+
+namespace rbx1::daemon {
+
+// Where one request's reply goes: event lines, then exactly one final line. Thread-safe: a job writes its events
+// from the worker thread. A sink that has gone (a vanished client) is the sink's business: the job goes on.
+class Reply {
+ public:
+  // Receives each reply line (one JSON document, no newline) in order, with final = true for the last one. It is
+  // called with the reply's lock held and must not block (queue the line, never wait for a reader).
+  using Sink = std::function<void(const std::string& line, bool final)>;
+
+  Reply(Sink sink, Command command);
+  // An event line: {"ts": ISO-8601 UTC, "t_ms": ms since the request, "event": name, ...fields}.
+  void event(const std::string& name, nlohmann::json fields = nlohmann::json::object());
+  void result(nlohmann::json result);
+  void error(const std::string& code, const std::string& message);
+  bool finished() const { return finished_; }
+  Command command() const { return command_; }
+  // Also log every line (spdlog, info) prefixed with tag: a job without a client (the start button).
+  void log_to(std::string tag) { log_tag_ = std::move(tag); }
+  double elapsed_ms() const;
+
+ private:
+  void write_line(const nlohmann::json& j, bool final);
+
+  Sink sink_;
+  Command command_;
+  std::chrono::steady_clock::time_point start_;
+  std::mutex mutex_;
+  std::atomic<bool> finished_{false};
+  std::string log_tag_;
+};
+
+// UTC wall-clock time as "2026-11-22T01:02:03.456Z".
+std::string iso_now();
+
+// What the daemon does with a well-formed request (rbx1d: Machine::handle). It must end the reply (result or
+// error), now or later from another thread, and must not block for long (jobs run elsewhere). An estop request
+// is acted on before the handler returns. The immediate e-stop entry point without a request is
+// Machine::estop(source).
+using Handler = std::function<void(const Request&, std::shared_ptr<Reply>)>;
+
+// One request line (without its newline) from any client: parsed, then given to handler with a Reply writing to
+// sink; a malformed line gets its error reply on sink at once and never reaches the handler. Returns the parsed
+// command, or nothing for a malformed line.
+std::optional<Command> submit_line(const Handler& handler, std::string_view line, Reply::Sink sink);
+
+// An in-process client's view of one reply (the web console, tests): the reply's lines queued as they come.
+class ReplyQueue {
+ public:
+  // A sink that feeds this queue (the queue lives as long as the sink).
+  static Reply::Sink sink_for(const std::shared_ptr<ReplyQueue>& q);
+  // The next line within timeout_ms (< 0: no limit); false on timeout or when the final line was taken.
+  bool next(nlohmann::json& line, int timeout_ms);
+  // Every line up to and including the final one; false (with the lines so far) on timeout.
+  bool wait_final(std::vector<nlohmann::json>& events, nlohmann::json& final, int timeout_ms);
+  bool done() const;  // the final line has arrived
+
+ private:
+  void push(const std::string& line, bool final);
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<std::string> lines_;
+  bool final_seen_ = false, final_taken_ = false;
+};
+
+// Submits request to handler in-process; its reply lines arrive in the returned queue.
+std::shared_ptr<ReplyQueue> submit(const Handler& handler, const Request& request);
+
+}  // namespace rbx1::daemon
