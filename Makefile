@@ -1,6 +1,6 @@
 # Top-level entry points. Every target installs what it needs first (tools/install-deps is quiet when done).
 # Host code builds with CMake+Ninja into build/cmake, binaries into build/bin; the AVR firmware into build/firmware.
-.PHONY: all deps host firmware test bench fuzz demo flash clean
+.PHONY: all deps host firmware test bench fuzz demo flash deb clean
 
 BUILD      := build
 CMAKE_DIR  := $(BUILD)/cmake
@@ -39,6 +39,10 @@ demo: host firmware
 
 flash: firmware
 	@tools/flash $(PORT)
+
+# build/deb/rbx1_VERSION_ARCH.deb: the host side as a Debian package (tools/deb/README.md).
+deb: host firmware
+	@tools/deb/build-deb
 
 clean:
 	rm -rf $(BUILD)

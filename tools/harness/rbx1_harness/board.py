@@ -14,7 +14,7 @@ GLOBAL = messages.GLOBAL_JOINT
 
 
 class Board:
-    def __init__(self, port, baud=115200, control=None, timeout=0.3, retries=10):
+    def __init__(self, port, baud=115200, control=None, timeout=0.3, retries=10, boot_wait=0.0):
         self.port, self.baud = port, baud
         # More patient than a host must be (100 ms, 5 retransmissions): the checks test the device, and a busy test
         # machine can deschedule this process past 100 ms. The answer time itself is checked in response_time.
@@ -30,6 +30,9 @@ class Board:
                 except OSError:
                     time.sleep(0.05)
             expect(self.control is not None, f"{control}: no simulator reads this control FIFO")
+        # Opening a Mega's port (DTR) may have reset it: its stk500v2 bootloader takes a byte arriving in its first
+        # 0.83 s as an upload starting, and then stays until 5.2 s pass without one (tools/flashsim/README.md).
+        time.sleep(boot_wait)
         self.info = self.link.hello()
         self.queue_size = self.info["queue_size"]
         self.saved_config = None

@@ -19,6 +19,9 @@ def main(argv=None):
     ap.add_argument("--baud", type=int, default=115200)
     ap.add_argument("--timeout", type=float, default=0.3, help="seconds before a retransmission (default 0.3)")
     ap.add_argument("--retries", type=int, default=10, help="retransmissions before the link is declared down")
+    ap.add_argument("--boot-wait", type=float, default=0.0,
+                    help="seconds of silence after opening the port before the first HELLO: opening an Arduino's "
+                         "port resets it, and the Mega's bootloader keeps any byte of its first 0.83 s (2 is safe)")
     ap.add_argument("--sim-arg", action="append", default=[], help="extra argument for --sim (repeatable)")
     ap.add_argument("-k", action="append", dest="select", help="run only checks whose name contains this")
     ap.add_argument("--list", action="store_true", help="list the checks and exit")
@@ -37,7 +40,7 @@ def main(argv=None):
             args.port, args.control = sim.port, sim.control
             print(f"# {' '.join(sim.args)} -> {sim.port}")
         try:
-            board = Board(args.port, args.baud, args.control, args.timeout, args.retries)
+            board = Board(args.port, args.baud, args.control, args.timeout, args.retries, args.boot_wait)
         except (LinkError, OSError, AssertionError) as e:
             print(f"FAIL  connect: {args.port}: {e}")
             print("0 passed, 1 failed")

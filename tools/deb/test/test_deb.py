@@ -1,0 +1,169 @@
+"""test_deb.py - the rbx1 Debian package: built by tools/deb/build-deb (`make deb`), checked by lintian (no error;
+warnings printed), then installed, used and removed on this machine as root (CI's throwaway machine): files where
+they belong, the conffile, the rbx1 user and its groups, the state directory, nothing enabled or started, the
+packaged rbx1-flash uploading to the simulated board, `dpkg -r` keeping the state directory and `dpkg -P` removing
+it. Leaves the machine as it found it. Env: RBX1_SOURCE_DIR, AVRBOARD."""
+import fcntl
+import grp
+import os
+import pwd
+import re
+import subprocess
+import time
+
+import pytest
+
+SRC = os.environ.get("RBX1_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", "..", ".."))
+AVRBOARD = os.environ.get("AVRBOARD", os.path.join(SRC, "build", "bin", "rbx1-avrboard"))
+FILES = ["/usr/bin/rbx1d", "/usr/bin/rbx1", "/usr/bin/rbx1-harness", "/usr/bin/rbx1-flash",
+         "/usr/share/rbx1/firmware/rbx1.hex", "/usr/share/rbx1/python/rbx1_harness/cli.py",
+         "/usr/share/rbx1/python/rbx1proto/link.py", "/lib/systemd/system/rbx1d.service",
+         "/lib/udev/rules.d/99-rbx1.rules", "/etc/rbx1/rbx1.toml", "/usr/share/doc/rbx1/copyright"]
+
+
+def run(*cmd, check=True, **kw):
+    r = subprocess.run(list(cmd), capture_output=True, text=True, timeout=kw.pop("timeout", 120), **kw)
+    if check:
+        assert r.returncode == 0, f"{' '.join(cmd)}: exit {r.returncode}\n{r.stdout}{r.stderr}"
+    return r
+
+
+def dpkg(*args):
+    """dpkg, waiting out another package manager's lock (apt in another terminal, tools/install-deps)."""
+    for _ in range(60):
+        r = run("dpkg", *args, check=False)
+        if r.returncode == 0 or "lock" not in r.stderr:
+            break
+        time.sleep(1)
+    assert r.returncode == 0, f"dpkg {' '.join(args)}: exit {r.returncode}\n{r.stdout}{r.stderr}"
+    return r
+
+
+def installed(pkg="rbx1"):
+    r = run("dpkg-query", "-W", "-f=${db:Status-Abbrev}", pkg, check=False)
+    return r.returncode == 0 and r.stdout.startswith("ii")
+
+
+def known(db, name):
+    try:
+        db(name)
+        return True
+    except KeyError:
+        return False
+
+
+@pytest.fixture(scope="module")
+def deb():
+    r = run(os.path.join(SRC, "tools", "deb", "build-deb"), timeout=300)
+    path = r.stdout.strip().splitlines()[-1]
+    arch = run("dpkg", "--print-architecture").stdout.strip()
+    assert re.fullmatch(rf".*/build/deb/rbx1_[0-9][^_]*_{arch}\.deb", path), path
+    return path
+
+
+def test_contents_and_dependencies(deb):
+    fields = run("dpkg-deb", "-f", deb, "Package", "Architecture", "Depends").stdout
+    depends = re.search(r"^Depends: (.*)$", fields, re.M).group(1)
+    # dpkg-shlibdeps named Debian's libraries rbx1d links against; the tools the scripts run are listed.
+    for lib in ("libopencv-core", "libgpiod2", "libspdlog1", "libc6", "libstdc++6"):
+        assert re.search(rf"\b{lib}[\w.-]*", depends), f"no {lib} in Depends: {depends}"
+    for tool in ("adduser", "avrdude", "python3", "python3-serial"):
+        assert re.search(rf"(^|, ){tool}($|,| )", depends), f"no {tool} in Depends: {depends}"
+    listing = run("dpkg-deb", "-c", deb).stdout
+    for f in FILES:
+        assert f" .{f}\n" in listing, f"{f} not in the package"
+    assert "/var/lib/rbx1" not in listing  # made by postinst, owned by the rbx1 user
+    for bundled in (".so", "__pycache__", "/usr/local/"):
+        assert bundled not in listing, f"{bundled} in the package:\n{listing}"
+    conffiles = run("dpkg-deb", "-I", deb, "conffiles").stdout.split()
+    assert conffiles == ["/etc/rbx1/rbx1.toml"], conffiles
+
+
+def test_lintian_reports_no_error(deb):
+    r = run("lintian", "--tag-display-limit", "0", deb, check=False, timeout=300)
+    tags = r.stdout.splitlines()
+    errors = [t for t in tags if t.startswith("E:")]
+    print("\nlintian: %d errors, %d warnings, %d other tags" % (
+        len(errors), sum(t.startswith("W:") for t in tags), sum(not t[:2] in ("E:", "W:") for t in tags)))
+    for t in tags:
+        print("  " + t)
+    assert not errors and r.returncode == 0, r.stdout + r.stderr
+
+
+@pytest.fixture
+def machine():
+    """Root only; refuses to touch a machine where the package or its paths already are; restores users, groups
+    and paths the install created."""
+    if os.geteuid() != 0:
+        pytest.skip("installing the package needs root (dpkg -i); CI runs make test as root on a throwaway machine")
+    lock = open("/run/lock/rbx1-deb-test.lock", "w")  # one install test per machine, whichever checkout runs it
+    fcntl.flock(lock, fcntl.LOCK_EX)
+    assert not installed(), "rbx1 is installed on this machine: the test would replace it (dpkg -P rbx1 first)"
+    for path in ("/etc/rbx1", "/var/lib/rbx1"):
+        assert not os.path.exists(path), f"{path} exists: the test would purge it"
+    before = {"user": known(pwd.getpwnam, "rbx1"), "rbx1": known(grp.getgrnam, "rbx1"),
+              "gpio": known(grp.getgrnam, "gpio")}
+    yield
+    if run("dpkg-query", "-W", "rbx1", check=False).returncode == 0:
+        dpkg("--purge", "rbx1")
+    if not before["user"] and known(pwd.getpwnam, "rbx1"):
+        run("deluser", "--system", "--quiet", "rbx1", check=False)
+    if not before["rbx1"] and known(grp.getgrnam, "rbx1"):
+        run("delgroup", "--system", "--quiet", "rbx1", check=False)
+    if not before["gpio"] and known(grp.getgrnam, "gpio"):
+        run("delgroup", "--system", "--quiet", "gpio", check=False)
+    lock.close()
+
+
+def test_install_flash_remove_purge(deb, machine, tmp_path):
+    dpkg("-i", deb)
+    assert installed()
+    for f in FILES:
+        assert os.path.isfile(f), f"{f} missing after dpkg -i"
+    with open(os.path.join(SRC, "build", "firmware", "rbx1.hex")) as a, open("/usr/share/rbx1/firmware/rbx1.hex") as b:
+        assert a.read() == b.read()
+
+    user = pwd.getpwnam("rbx1")
+    assert user.pw_uid < 1000 and user.pw_dir == "/var/lib/rbx1" and grp.getgrgid(user.pw_gid).gr_name == "rbx1"
+    groups = {g.gr_name for g in grp.getgrall() if "rbx1" in g.gr_mem}
+    assert {"dialout", "video", "gpio"} <= groups, groups
+    st = os.stat("/var/lib/rbx1")
+    assert st.st_uid == user.pw_uid and st.st_gid == user.pw_gid
+
+    # Installed, neither enabled nor started.
+    assert not os.path.lexists("/etc/systemd/system/multi-user.target.wants/rbx1d.service")
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            assert os.readlink(f"/proc/{pid}/exe") != "/usr/bin/rbx1d", "rbx1d runs after dpkg -i"
+        except OSError:
+            pass
+    unit = open("/lib/systemd/system/rbx1d.service").read()
+    assert "ExecStart=/usr/bin/rbx1d --config /etc/rbx1/rbx1.toml\n" in unit
+
+    # The installed programs run against the installed files.
+    assert run("/usr/bin/rbx1d", "--config", "/etc/rbx1/rbx1.toml", "--check-config").stdout == "OK\n"
+    assert "handshake" in run("/usr/bin/rbx1-harness", "--list").stdout
+    assert run("/usr/bin/rbx1", "--help").returncode == 0
+    r = run("/usr/bin/rbx1-flash", check=False)
+    assert r.returncode == 2 and r.stderr.startswith("usage: rbx1-flash PORT"), r.stderr
+
+    # rbx1-flash uploads the packaged image to the simulated board through its bootloader.
+    board = subprocess.Popen([AVRBOARD, "--flash", str(tmp_path / "flash.bin"), "--max-seconds", "120"],
+                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        port = board.stdout.readline().strip()
+        r = run("/usr/bin/rbx1-flash", port, check=False)
+        assert r.returncode == 0 and "bytes of flash verified" in r.stderr, r.stderr
+    finally:
+        board.terminate()
+        board.wait(10)
+
+    # The operator's state survives removal; the conffile too. Purge removes both.
+    with open("/var/lib/rbx1/library.json", "w") as f:
+        f.write("{}\n")
+    dpkg("-r", "rbx1")
+    assert not os.path.exists("/usr/bin/rbx1d")
+    assert os.path.isfile("/var/lib/rbx1/library.json") and os.path.isfile("/etc/rbx1/rbx1.toml")
+    dpkg("-P", "rbx1")
+    assert not os.path.exists("/var/lib/rbx1") and not os.path.exists("/etc/rbx1")
+    assert run("dpkg-query", "-W", "rbx1", check=False).returncode != 0
