@@ -66,7 +66,7 @@ def test_contents_and_dependencies(deb):
     depends = re.search(r"^Depends: (.*)$", fields, re.M).group(1)
     # dpkg-shlibdeps named Debian's libraries rbx1d links against; the tools the scripts run are listed.
     for lib in ("libopencv-core", "libgpiod2", "libspdlog1", "libc6", "libstdc++6"):
-        assert re.search(rf"\b{lib}[\w.-]*", depends), f"no {lib} in Depends: {depends}"
+        assert re.search(rf"\b{re.escape(lib)}[\w.-]*", depends), f"no {lib} in Depends: {depends}"
     for tool in ("adduser", "avrdude", "python3", "python3-serial"):
         assert re.search(rf"(^|, ){tool}($|,| )", depends), f"no {tool} in Depends: {depends}"
     listing = run("dpkg-deb", "-c", deb).stdout
