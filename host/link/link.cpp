@@ -101,7 +101,8 @@ int Link::handshake(std::string& error) {
   }
   if (r == -EPROTO) {
     error = name_ + ": firmware speaks protocol version " + std::to_string(h.proto_version) + ", this host " +
-            std::to_string(RBX1_PROTO_VERSION) + "; flash the matching firmware";
+            std::to_string(RBX1_PROTO_VERSION) + "; flash the matching firmware: rbx1-flash " + name_ +
+            " (from a checkout: make flash PORT=" + name_ + ")";
     return r;
   }
   if (r < 0) {

@@ -333,8 +333,10 @@ TEST(Link, VersionMismatchIsAClearError) {
   Link link;
   std::string error;
   EXPECT_EQ(link.open(peer.slave_path(), 115200, error), -EPROTO);
-  EXPECT_NE(error.find("protocol version 2"), std::string::npos) << error;
-  EXPECT_NE(error.find(peer.slave_path()), std::string::npos) << error;
+  EXPECT_NE(error.find("protocol version 2, this host " + std::to_string(RBX1_PROTO_VERSION)), std::string::npos)
+      << error;
+  EXPECT_NE(error.find("rbx1-flash " + peer.slave_path()), std::string::npos) << error;
+  EXPECT_NE(error.find("make flash PORT=" + peer.slave_path() + ")"), std::string::npos) << error;
   EXPECT_FALSE(link.connected());
 }
 

@@ -34,6 +34,10 @@ class Board:
         # 0.83 s as an upload starting, and then stays until 5.2 s pass without one (tools/flashsim/README.md).
         time.sleep(boot_wait)
         self.info = self.link.hello()
+        theirs = self.info["proto_version"]
+        expect(self.info["status"] != Status.BAD_VERSION and theirs == messages.PROTO_VERSION,
+               f"the firmware speaks protocol version {theirs}, this harness {messages.PROTO_VERSION}: flash the "
+               f"matching firmware: make flash PORT={port} (installed: rbx1-flash {port})")
         self.queue_size = self.info["queue_size"]
         self.saved_config = None
 

@@ -1,0 +1,96 @@
+"""test_version_mismatch.py - a firmware of another protocol version (a fake on a pty that answers HELLO as a
+firmware speaking version PROTO_VERSION + 1 does: BAD_VERSION, its own version) meets the harness and rbx1d: both
+name the two versions and the command that fixes it. Env: RBX1_SOURCE_DIR, RBX1_BIN_DIR."""
+import json
+import os
+import select
+import subprocess
+import sys
+import threading
+import time
+import tty
+
+import pytest
+
+SRC = os.environ.get("RBX1_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", "..", ".."))
+BIN = os.environ.get("RBX1_BIN_DIR", os.path.join(SRC, "build", "bin"))
+sys.path.insert(0, os.path.join(SRC, "protocol", "python"))
+from rbx1proto import frame, messages  # noqa: E402
+from rbx1proto.messages import MsgType, Status  # noqa: E402
+
+THEIRS = messages.PROTO_VERSION + 1
+
+
+class OtherVersionFirmware:
+    """Answers every HELLO with BAD_VERSION and version THEIRS; stays silent to everything else."""
+
+    def __init__(self):
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)
+        self.port = os.ttyname(self.slave)
+        self.hellos = 0
+        self.stop_r, self.stop_w = os.pipe()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self):
+        decoder = frame.Decoder()
+        while True:
+            ready, _, _ = select.select([self.master, self.stop_r], [], [])
+            if self.stop_r in ready:
+                return
+            for f in decoder.feed(os.read(self.master, 256)):
+                if getattr(f, "type", None) == MsgType.HELLO:
+                    self.hellos += 1
+                    payload = messages.pack_response(
+                        MsgType.HELLO, status=Status.BAD_VERSION, proto_version=THEIRS, fw_major=9, fw_minor=0,
+                        fw_patch=0, joints=6, queue_size=16, capabilities=0, last_seq=0)
+                    os.write(self.master, frame.encode(f.seq, MsgType.HELLO | 0x80, payload))
+
+    def close(self):
+        os.write(self.stop_w, b"x")
+        self.thread.join(5)
+        for fd in (self.master, self.slave, self.stop_r, self.stop_w):
+            os.close(fd)
+
+
+@pytest.fixture
+def firmware():
+    fw = OtherVersionFirmware()
+    yield fw
+    fw.close()
+
+
+def test_harness_names_both_versions_and_the_fix(firmware):
+    r = subprocess.run([sys.executable, os.path.join(SRC, "tools", "rbx1-harness"), "--port", firmware.port],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1 and firmware.hellos >= 1, r.stdout + r.stderr
+    want = (f"FAIL  connect: {firmware.port}: the firmware speaks protocol version {THEIRS}, this harness "
+            f"{messages.PROTO_VERSION}: flash the matching firmware: make flash PORT={firmware.port} "
+            f"(installed: rbx1-flash {firmware.port})")
+    assert want in r.stdout.splitlines(), r.stdout
+
+
+def test_daemon_names_both_versions_and_the_fix(firmware, tmp_path):
+    sock = str(tmp_path / "rbx1d.sock")
+    daemon = subprocess.Popen([os.path.join(BIN, "rbx1d"), "--config", os.path.join(SRC, "data", "rbx1.toml"),
+                               "--port", firmware.port, "--socket", sock],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        link = {}
+        for _ in range(100):  # the daemon's worker opens the link at start and reports why it is not ready
+            r = subprocess.run([os.path.join(BIN, "rbx1"), "status", "--json", "--socket", sock],
+                               capture_output=True, text=True, timeout=20)
+            if r.returncode == 0:
+                link = json.loads(r.stdout.strip().splitlines()[-1])["result"]["link"]
+                if "error" in link:
+                    break
+            time.sleep(0.1)
+        want = (f"{firmware.port}: firmware speaks protocol version {THEIRS}, this host {messages.PROTO_VERSION}; "
+                f"flash the matching firmware: rbx1-flash {firmware.port} (from a checkout: make flash "
+                f"PORT={firmware.port})")
+        assert link.get("error") == want, link
+    finally:
+        daemon.terminate()
+        assert daemon.wait(timeout=10) == 0
+    assert want in daemon.stderr.read()
