@@ -10,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "calibration.hpp"
+#include "image_io.hpp"
 #include "commands.hpp"
 
 namespace rbx1::cli {
@@ -66,9 +67,10 @@ int run(const CalibrateArgs& a) {
     if (files.empty()) return fail(a.chessboard_dir + ": no images (.png, .jpg, .bmp, .tif, .pgm)");
     std::vector<cv::Mat> images;
     for (const auto& f : files) {
-      cv::Mat img = cv::imread(f.string(), cv::IMREAD_GRAYSCALE);
-      if (img.empty()) return fail(f.string() + ": not a readable image");
-      images.push_back(img);
+      cv::Mat img;
+      std::string why;  // read_image keeps libpng's and libjpeg's own messages off stderr
+      if (!rbx1::vision::read_image(f.string(), img, why)) return fail(why);
+      images.push_back(rbx1::vision::to_gray8(img));
     }
     IntrinsicsResult res;
     std::string error;

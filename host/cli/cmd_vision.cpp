@@ -1,4 +1,5 @@
 // cmd_vision.cpp - rbx1 detect / teach / plot: the perception commands (shared/DESIGN.md fixes detect).
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -24,15 +25,35 @@ struct Common {
   v::VisionOptions opt;
 };
 
+// A strictly positive finite number, with a short message (CLI11's PositiveNumber prints DBL_MIN in full).
+const CLI::Validator kPositive(
+    [](std::string& text) -> std::string {
+      double v = 0;
+      size_t used = 0;
+      try {
+        v = std::stod(text, &used);
+      } catch (const std::exception&) {
+        return "not a number: " + text;
+      }
+      if (used != text.size() || !std::isfinite(v)) return "not a number: " + text;
+      if (v <= 0) return "must be greater than 0, got " + text;
+      return {};
+    },
+    "POSITIVE");
+
 void add_common(CLI::App* c, Common& s) {
   c->add_option("IMAGE", s.image, "image file of the scene")->required();
   c->add_option("--background", s.opt.background_path, "image of the empty scene (same size); default: modelled");
   c->add_option("--objects", s.objects, "objects darker or lighter than the background")
       ->check(CLI::IsMember({"auto", "dark", "light"}));
-  auto* ppc = c->add_option("--px-per-cm", s.opt.px_per_cm, "image scale (pixels per cm)")->check(CLI::PositiveNumber);
+  auto* ppc = c->add_option("--px-per-cm", s.opt.px_per_cm, "image scale (pixels per cm)")->check(kPositive);
   auto* cal = c->add_option("--calibration", s.opt.calibration_path, "calibration file from rbx1 calibrate");
   ppc->excludes(cal);
-  c->add_option("--gripper-max-cm", s.opt.gripper_max_cm, "widest gripper opening (cm)")->check(CLI::PositiveNumber);
+  c->add_option("--gripper-max-cm", s.opt.gripper_max_cm, "widest gripper opening (cm)")->check(kPositive);
+  c->add_option("--gripper-min-cm", s.opt.gripper_min_cm, "narrowest opening that holds an object (cm)")
+      ->check(CLI::NonNegativeNumber);
+  c->add_option("--gripper-min-px", s.opt.gripper_min_px, "the same when uncalibrated (px)")
+      ->check(CLI::NonNegativeNumber);
   c->add_option("--finger-width-cm", s.opt.finger_width_cm, "finger width across the closing line (cm)")
       ->check(CLI::NonNegativeNumber);
   c->add_option("--finger-depth-cm", s.opt.finger_depth_cm, "finger depth outward from the contact (cm)")
@@ -41,7 +62,7 @@ void add_common(CLI::App* c, Common& s) {
       ->check(CLI::NonNegativeNumber);
   c->add_option("--finger-depth-px", s.opt.finger_depth_px, "finger depth when uncalibrated (px)")
       ->check(CLI::NonNegativeNumber);
-  c->add_option("--min-area-px", s.opt.min_area_px, "smaller regions are specks")->check(CLI::PositiveNumber);
+  c->add_option("--min-area-px", s.opt.min_area_px, "smaller regions are specks (default: 40 at 640x480, scaled with the frame)")->check(kPositive);
   c->add_option("--match-threshold", s.opt.match_threshold, "identification score below this: unknown")
       ->check(CLI::Range(0.0, 1.0));
 }
@@ -146,7 +167,7 @@ void add_plot(CLI::App& app, int& exit_code) {
   auto dir = std::make_shared<std::string>();
   CLI::App* c = app.add_subcommand("plot", "PNG plots of one object's r-theta profile and D(theta)");
   add_common(c, *s);
-  c->add_option("--object", *index, "object number (as in detect)")->check(CLI::PositiveNumber);
+  c->add_option("--object", *index, "object number (as in detect)")->check(kPositive);
   c->add_option("--out-dir", *dir, "folder for the PNG files (created if missing)")->required();
   c->callback([s, index, dir, &exit_code] {
     std::unique_ptr<v::Vision> vis;

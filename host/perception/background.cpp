@@ -38,35 +38,97 @@ void robust_stats(const cv::Mat& g, const cv::Mat& bg, int step, double& median,
   sigma = std::max(1.0, 1.4826 * mad);
 }
 
-// Which polarity the objects have: the sign whose tail (beyond the threshold) carries more contrast.
-int decide_sign(const cv::Mat& g, const cv::Mat& bg, double median, double threshold, int step) {
-  double dark = 0, light = 0;
-  for (int y = step / 2; y < g.rows; y += step) {
-    const uchar* gr = g.ptr<uchar>(y);
-    const uchar* br = bg.ptr<uchar>(y);
-    for (int x = step / 2; x < g.cols; x += step) {
-      double v = gr[x] - br[x] - median;
-      if (v < -threshold) dark -= v;
-      else if (v > threshold) light += v;
-    }
-  }
-  return light > dark ? +1 : -1;
-}
-
 int sign_of(Polarity p) { return p == Polarity::Light ? +1 : -1; }
+
+std::string size_text(const cv::Mat& m) { return std::to_string(m.cols) + "x" + std::to_string(m.rows); }
 
 }  // namespace
 
-cv::Mat Contrast::contrast(cv::Rect roi) const {
+bool average_background(const std::vector<cv::Mat>& frames, cv::Mat& out, std::string& error) {
+  if (frames.empty()) {
+    error = "no frames to average";
+    return false;
+  }
+  const cv::Mat& f0 = frames.front();
+  if (f0.empty() || (f0.depth() != CV_8U && f0.depth() != CV_16U)) {
+    error = "frame 1 is empty or not 8/16-bit";
+    return false;
+  }
+  cv::Mat acc(f0.size(), CV_MAKETYPE(CV_64F, f0.channels()), cv::Scalar::all(0));
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const cv::Mat& f = frames[i];
+    if (f.size() != f0.size() || f.type() != f0.type()) {
+      error = "frame " + std::to_string(i + 1) + " is " + size_text(f) + " with " + std::to_string(f.channels()) +
+              " channels, frame 1 is " + size_text(f0) + " with " + std::to_string(f0.channels());
+      return false;
+    }
+    cv::accumulate(f, acc);
+  }
+  acc.convertTo(out, f0.type(), 1.0 / double(frames.size()));  // rounds to nearest
+  return true;
+}
+
+LightFit compensate_light(const cv::Mat& gray, const cv::Mat& bg, cv::Mat* corrected) {
+  CV_Assert(gray.type() == CV_8U && bg.type() == CV_8U && gray.size() == bg.size());
+  // Samples on a grid of about 20 000 points, skipping saturated pixels (their ratio says nothing).
+  const int step = std::max(1, int(std::sqrt(double(gray.total()) / 20000.0)));
+  std::vector<float> b, g;
+  for (int y = step / 2; y < gray.rows; y += step) {
+    const uchar* gr = gray.ptr<uchar>(y);
+    const uchar* br = bg.ptr<uchar>(y);
+    for (int x = step / 2; x < gray.cols; x += step)
+      if (gr[x] > 2 && gr[x] < 253 && br[x] > 2 && br[x] < 253) b.push_back(br[x]), g.push_back(gr[x]);
+  }
+  LightFit fit;
+  const size_t n = b.size();
+  if (n < 50) return fit;
+  std::vector<char> use(n, 1);
+  std::vector<float> res(n);
+  for (int iter = 0; iter < 6; ++iter) {
+    double sb = 0, sg = 0, sbb = 0, sbg = 0, m = 0;
+    for (size_t i = 0; i < n; ++i)
+      if (use[i]) sb += b[i], sg += g[i], sbb += double(b[i]) * b[i], sbg += double(b[i]) * g[i], m += 1;
+    if (m < 50) break;
+    const double vb = sbb - sb * sb / m;
+    if (vb >= 4.0 * m) {  // the table spans enough levels to tell gain from offset
+      fit.gain = (sbg - sb * sg / m) / vb;
+      fit.offset = (sg - fit.gain * sb) / m;
+    } else {  // a nearly uniform table: light changes are multiplicative, fit the gain alone
+      fit.gain = sbb > 0 ? sbg / sbb : 1.0;
+      fit.offset = 0;
+    }
+    fit.unchanged = m / double(n);
+    // Residuals of every sample; unchanged pixels are those within 3 robust sigma of the fit.
+    for (size_t i = 0; i < n; ++i) res[i] = std::abs(g[i] - float(fit.gain * b[i] + fit.offset));
+    std::vector<float> sorted;
+    sorted.reserve(n);
+    for (size_t i = 0; i < n; ++i)
+      if (use[i]) sorted.push_back(res[i]);
+    std::nth_element(sorted.begin(), sorted.begin() + long(sorted.size() / 2), sorted.end());
+    const float cut = std::max(4.0f, 3.0f * 1.4826f * sorted[sorted.size() / 2]);
+    for (size_t i = 0; i < n; ++i) use[i] = res[i] <= cut;
+  }
+  // A plausible light change only (a lamp dimmed or brightened, the black level moved): anything larger is a
+  // wrong background or a covered table, which isolation must report rather than have fitted away.
+  if (!(fit.gain >= 0.5 && fit.gain <= 2.0 && std::abs(fit.offset) <= 64 && fit.unchanged >= 0.2)) fit = LightFit{};
+  if (corrected) {
+    cv::Mat out;  // never in place: *corrected may share the caller's background image
+    bg.convertTo(out, CV_8U, fit.gain, fit.offset);
+    *corrected = out;
+  }
+  return fit;
+}
+
+cv::Mat Contrast::contrast(cv::Rect roi, int s) const {
   cv::Mat out;
-  if (sign > 0) cv::subtract(gray(roi), background(roi), out, cv::noArray(), CV_16S);
+  if (s > 0) cv::subtract(gray(roi), background(roi), out, cv::noArray(), CV_16S);
   else cv::subtract(background(roi), gray(roi), out, cv::noArray(), CV_16S);
   return out;
 }
 
-cv::Mat Contrast::above(double t) const {
+cv::Mat Contrast::above(double t, int s) const {
   cv::Mat d, out;
-  if (sign > 0) cv::subtract(gray, background, d);  // saturates at 0: the other polarity drops out
+  if (s > 0) cv::subtract(gray, background, d);  // saturates at 0: the other polarity drops out
   else cv::subtract(background, gray, d);
   cv::threshold(d, out, t, 255, cv::THRESH_BINARY);
   return out;
@@ -83,49 +145,120 @@ bool contrast_from_background(const cv::Mat& gray, const cv::Mat& background_gra
   out.background = background_gray;
   double median = 0;
   robust_stats(gray, background_gray, 3, median, out.noise_sigma);
-  out.sign = objects == Polarity::Auto
-                 ? decide_sign(gray, background_gray, median, std::max(min_contrast, 4 * out.noise_sigma), 2)
-                 : sign_of(objects);
+  (void)min_contrast;
+  out.sign = objects == Polarity::Auto ? 0 : sign_of(objects);  // auto: dark and light objects in one pass
   return true;
 }
+
+namespace {
+
+// The global model: Otsu splits the low-resolution frame in two classes; the larger is the table. A quadratic
+// surface fitted to the table class (least squares, two rounds dropping outliers) is the background when the
+// histogram is clearly bimodal and the table fits it within a small fraction of the classes' separation.
+bool global_background(const cv::Mat& small, cv::Mat& surface) {
+  cv::Mat cls;
+  double t = cv::threshold(small, cls, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
+  cv::Scalar mean_all, sd_all;
+  cv::meanStdDev(small, mean_all, sd_all);
+  int n_hi = cv::countNonZero(cls), n = int(small.total()), n_lo = n - n_hi;
+  if (n_hi == 0 || n_lo == 0 || sd_all[0] < 4) return false;
+  double m_hi = cv::mean(small, cls)[0], m_lo = cv::mean(small, ~cls)[0];
+  double w_hi = double(n_hi) / n, w_lo = double(n_lo) / n;
+  double between = w_hi * w_lo * (m_hi - m_lo) * (m_hi - m_lo), total = sd_all[0] * sd_all[0];
+  if (between < 0.75 * total) return false;  // not bimodal enough
+  cv::Mat table = n_hi >= n_lo ? cls : ~cls;
+  const double sep = std::abs(m_hi - m_lo);
+  (void)t;
+  // Quadratic surface in normalised coordinates.
+  auto basis = [&](int x, int y, double* b) {
+    double u = 2.0 * x / std::max(1, small.cols - 1) - 1, v = 2.0 * y / std::max(1, small.rows - 1) - 1;
+    b[0] = 1, b[1] = u, b[2] = v, b[3] = u * u, b[4] = u * v, b[5] = v * v;
+  };
+  cv::Mat coef;
+  cv::Mat use = table.clone();
+  cv::erode(use, use, cv::Mat(), cv::Point(-1, -1), 1);  // away from the objects' blurred edges
+  double resid_sigma = 0;
+  for (int round = 0; round < 2; ++round) {
+    cv::Mat A(0, 6, CV_64F), B(0, 1, CV_64F);
+    for (int y = 0; y < small.rows; ++y)
+      for (int x = 0; x < small.cols; ++x) {
+        if (!use.at<uchar>(y, x)) continue;
+        double b[6];
+        basis(x, y, b);
+        A.push_back(cv::Mat(1, 6, CV_64F, b));
+        B.push_back(double(small.at<uchar>(y, x)));
+      }
+    if (A.rows < 30) return false;
+    if (!cv::solve(A, B, coef, cv::DECOMP_SVD)) return false;
+    cv::Mat r = cv::abs(A * coef - B);
+    std::vector<double> rv(r.begin<double>(), r.end<double>());
+    std::nth_element(rv.begin(), rv.begin() + long(rv.size() / 2), rv.end());
+    resid_sigma = 1.4826 * rv[rv.size() / 2];
+    // Second round: only the table pixels that fit (drops a shadow or a pattern patch).
+    int i = 0;
+    for (int y = 0; y < small.rows; ++y)
+      for (int x = 0; x < small.cols; ++x) {
+        if (!use.at<uchar>(y, x)) continue;
+        if (r.at<double>(i++) > 3 * resid_sigma + 2) use.at<uchar>(y, x) = 0;
+      }
+  }
+  if (resid_sigma > std::max(3.0, sep / 10)) return false;  // uneven or patterned: the local model
+  surface.create(small.size(), CV_32F);
+  for (int y = 0; y < small.rows; ++y)
+    for (int x = 0; x < small.cols; ++x) {
+      double b[6];
+      basis(x, y, b);
+      double v = 0;
+      for (int k = 0; k < 6; ++k) v += b[k] * coef.at<double>(k);
+      surface.at<float>(y, x) = float(v);
+    }
+  return true;
+}
+
+}  // namespace
 
 void contrast_auto(const cv::Mat& gray, Polarity objects, double min_contrast, Contrast& out) {
   // Work at about 160 px across: the background is smooth at that scale, objects are not.
   const int f = std::max(1, int(std::ceil(std::max(gray.cols, gray.rows) / 160.0)));
   cv::Mat small;
   cv::resize(gray, small, cv::Size((gray.cols + f - 1) / f, (gray.rows + f - 1) / f), 0, 0, cv::INTER_AREA);
-  int k = std::max(3, (std::min(small.cols, small.rows) / 3) | 1);
-  k = std::min(k, 255);
-  cv::Mat b0;
-  cv::medianBlur(small, b0, k);
+  cv::Mat bsmall;
+  int sign = objects == Polarity::Auto ? 0 : sign_of(objects);
+  out.global_model = global_background(small, bsmall);
+  if (!out.global_model) {
+    int k = std::max(3, (std::min(small.cols, small.rows) / 3) | 1);
+    k = std::min(k, 255);
+    cv::Mat b0;
+    cv::medianBlur(small, b0, k);
 
-  // First guess of the objects at low resolution, to exclude them from the second estimate.
-  cv::Mat r;
-  cv::subtract(small, b0, r, cv::noArray(), CV_16S);
-  double med = 0, sig = 1;
-  robust_stats(small, b0, 1, med, sig);
-  double t = std::max(min_contrast, 4 * sig);
-  int sign = objects == Polarity::Auto ? decide_sign(small, b0, med, t, 1) : sign_of(objects);
-  cv::Mat objmask;
-  if (sign > 0) cv::compare(r, med + t / 2, objmask, cv::CMP_GT);
-  else cv::compare(r, med - t / 2, objmask, cv::CMP_LT);
-  cv::dilate(objmask, objmask, cv::Mat(), cv::Point(-1, -1), 1);
+    // First guess of the objects at low resolution, to exclude them from the second estimate.
+    cv::Mat r;
+    cv::subtract(small, b0, r, cv::noArray(), CV_16S);
+    double med = 0, sig = 1;
+    robust_stats(small, b0, 1, med, sig);
+    double t = std::max(min_contrast, 4 * sig);
+    cv::Mat objmask, lo, hi;
+    cv::compare(r, med + t / 2, hi, cv::CMP_GT);
+    cv::compare(r, med - t / 2, lo, cv::CMP_LT);
+    objmask = sign > 0 ? hi : sign < 0 ? lo : (hi | lo);
+    cv::dilate(objmask, objmask, cv::Mat(), cv::Point(-1, -1), 1);
 
-  // Normalised convolution: average of background pixels only, with a wide Gaussian.
-  cv::Mat w, v, num, den;
-  objmask.convertTo(w, CV_32F, -1.0 / 255.0, 1.0);
-  small.convertTo(v, CV_32F);
-  v = v.mul(w);
-  double sigma_blur = std::max(1.0, k / 4.0);
-  cv::GaussianBlur(v, num, cv::Size(), sigma_blur);
-  cv::GaussianBlur(w, den, cv::Size(), sigma_blur);
-  cv::Mat bsmall(small.size(), CV_32F);
-  for (int y = 0; y < small.rows; ++y) {
-    const float* n = num.ptr<float>(y);
-    const float* d = den.ptr<float>(y);
-    const uchar* fb = b0.ptr<uchar>(y);
-    float* o = bsmall.ptr<float>(y);
-    for (int x = 0; x < small.cols; ++x) o[x] = d[x] > 0.05f ? n[x] / d[x] : float(fb[x]);
+    // Normalised convolution: average of background pixels only, with a wide Gaussian.
+    cv::Mat w, v, num, den;
+    objmask.convertTo(w, CV_32F, -1.0 / 255.0, 1.0);
+    small.convertTo(v, CV_32F);
+    v = v.mul(w);
+    double sigma_blur = std::max(1.0, k / 4.0);
+    cv::GaussianBlur(v, num, cv::Size(), sigma_blur);
+    cv::GaussianBlur(w, den, cv::Size(), sigma_blur);
+    bsmall.create(small.size(), CV_32F);
+    for (int y = 0; y < small.rows; ++y) {
+      const float* n = num.ptr<float>(y);
+      const float* d = den.ptr<float>(y);
+      const uchar* fb = b0.ptr<uchar>(y);
+      float* o = bsmall.ptr<float>(y);
+      for (int x = 0; x < small.cols; ++x) o[x] = d[x] > 0.05f ? n[x] / d[x] : float(fb[x]);
+    }
   }
   cv::Mat s8, b8;
   bsmall.convertTo(s8, CV_8U);
@@ -134,7 +267,7 @@ void contrast_auto(const cv::Mat& gray, Polarity objects, double min_contrast, C
   out.background = b8;
   double median = 0;
   robust_stats(gray, b8, 4, median, out.noise_sigma);
-  out.sign = sign;  // decided on the low-resolution residual, where objects stand out of the noise
+  out.sign = sign;
 }
 
 }  // namespace rbx1::vision

@@ -12,7 +12,9 @@ bool detect(const cv::Mat& gray, const cv::Mat& background_gray, const DetectorO
   out.size = gray.size();
   Contrast con;
   if (!background_gray.empty()) {
-    if (!contrast_from_background(gray, background_gray, opt.objects, opt.isolation.min_contrast, con, error)) return false;
+    cv::Mat bg = background_gray;
+    if (opt.compensate_light && bg.size() == gray.size()) out.light = compensate_light(gray, background_gray, &bg);
+    if (!contrast_from_background(gray, bg, opt.objects, opt.isolation.min_contrast, con, error)) return false;
   } else {
     contrast_auto(gray, opt.objects, opt.isolation.min_contrast, con);
   }
@@ -22,8 +24,15 @@ bool detect(const cv::Mat& gray, const cv::Mat& background_gray, const DetectorO
     DetectedObject o;
     if (!measure_geometry(layer, o.geometry)) continue;
     o.pose = estimate_pose(o.geometry, opt.pose);
+    o.touching = layer.touching;
     RayHits hits = cast_rays(o.geometry, opt.grip.lines);
-    o.grip = choose_grip(o.geometry, hits, layer.label, out.isolation.labels, out.isolation.obstacle, opt.grip, o.chord_phi,
+    GripOptions go = opt.grip;
+    if (o.touching && (go.finger_width_px <= 0 || go.finger_depth_px <= 0)) {
+      // A touching neighbour is always checked: with no finger size given, a thin finger still may not
+      // land on it (which is what closing at the junction would do).
+      go.finger_width_px = 3, go.finger_depth_px = 3;
+    }
+    o.grip = choose_grip(o.geometry, hits, layer.label, out.isolation.labels, out.isolation.obstacle, go, o.chord_phi,
                          o.chord_d);
     std::vector<double> profile = identity_profile(o.geometry, o.pose, hits, opt.grip.lines);
     if (lib && !lib->entries.empty()) {

@@ -20,12 +20,14 @@ struct DetectorOptions {
   PoseOptions pose;
   GripOptions grip;
   MatchOptions match;
+  bool compensate_light = true;  // with a known background: fit gain and offset to the scene's light first
   double px_per_cm = 0;  // when > 0, identification compares sizes in cm^2 (entries taught with a scale)
 };
 
 struct Detection {
   cv::Size size;
-  int sign = -1;                       // polarity used: -1 dark objects, +1 light
+  int sign = -1;                       // polarity used: -1 dark objects, +1 light, 0 both
+  LightFit light;                      // the light change fitted against the known background
   Isolation isolation;                 // label image (neighbours for finger clearance)
   std::vector<DetectedObject> objects;
   std::vector<std::vector<double>> profiles;  // identity profile per object

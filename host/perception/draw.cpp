@@ -20,7 +20,30 @@ std::string fmt(const char* f, double v) {
   return b;
 }
 
+bool inside_layer(const Layer& l, cv::Point2d p) {
+  cv::Point q(int(std::lround(p.x)) - l.roi.x, int(std::lround(p.y)) - l.roi.y);
+  return q.x >= 0 && q.y >= 0 && q.x < l.inside.cols && q.y < l.inside.rows && l.inside.at<uchar>(q) != 0;
+}
+
 }  // namespace
+
+cv::Point2d label_anchor(const DetectedObject& o) {
+  const cv::Point2d c = o.geometry.centroid;
+  double len = 0;
+  for (double r : o.geometry.r) len = std::max(len, r);
+  const double a = o.pose.orientation_deg * M_PI / 180;
+  const cv::Point2d u(std::cos(a), std::sin(a));
+  // Half-way out along the axis (off the centroid mark and the grip line), on whichever side is inside.
+  for (double f : {0.5, -0.5, 0.3, -0.3, 0.0})
+    if (inside_layer(o.layer, c + f * len * u)) return c + f * len * u;
+  // A centroid outside the object (a U, a ring): its deepest pixel.
+  if (o.layer.inside.empty()) return c;
+  cv::Mat dist;
+  cv::distanceTransform(o.layer.inside, dist, cv::DIST_L2, 3);
+  cv::Point best;
+  cv::minMaxLoc(dist, nullptr, nullptr, nullptr, &best);
+  return cv::Point2d(best + o.layer.roi.tl());
+}
 
 cv::Mat annotate(const cv::Mat& frame, const Detection& det, bool calibrated) {
   cv::Mat img;
@@ -46,10 +69,14 @@ cv::Mat annotate(const cv::Mat& frame, const Detection& det, bool calibrated) {
     cv::line(img, fx(o.grip.p1), fx(o.grip.p2), gc, thick, cv::LINE_AA, kShift);
     cv::circle(img, fx(o.grip.p1), 4 << kShift, gc, -1, cv::LINE_AA, kShift);
     cv::circle(img, fx(o.grip.p2), 4 << kShift, gc, -1, cv::LINE_AA, kShift);
+    // The number sits on its own object (centred on label_anchor), never beside a neighbour.
     std::string num = "#" + std::to_string(o.index) + (o.identity.label ? " " + *o.identity.label : "");
-    cv::Point tp(int(c.x + len * 0.7 + 4), int(c.y - len * 0.7 - 4));
-    tp.x = std::clamp(tp.x, 0, std::max(0, img.cols - 60));
-    tp.y = std::clamp(tp.y, 14, img.rows - 2);
+    int base = 0;
+    cv::Size ts = cv::getTextSize(num, cv::FONT_HERSHEY_SIMPLEX, font, thick + 2, &base);
+    cv::Point2d an = label_anchor(o);
+    cv::Point tp(int(an.x - ts.width / 2.0), int(an.y + ts.height / 2.0));
+    tp.x = std::clamp(tp.x, 0, std::max(0, img.cols - ts.width));
+    tp.y = std::clamp(tp.y, ts.height, img.rows - 2);
     cv::putText(img, num, tp, cv::FONT_HERSHEY_SIMPLEX, font, cv::Scalar(0, 0, 0), thick + 2, cv::LINE_AA);
     cv::putText(img, num, tp, cv::FONT_HERSHEY_SIMPLEX, font, cv::Scalar(255, 255, 255), thick, cv::LINE_AA);
     std::string open = o.grip.opening_cm ? fmt("%.2f cm", *o.grip.opening_cm) : fmt("%.1f px", o.grip.opening_px);

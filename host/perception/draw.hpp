@@ -9,6 +9,9 @@
 
 namespace rbx1::vision {
 
+// Where the object's number is drawn: a point on the object itself (half-way along its axis when that is
+// inside it, else its deepest pixel).
+cv::Point2d label_anchor(const DetectedObject& o);
 // The frame with each object's contour, number, principal axis, grip points and opening.
 cv::Mat annotate(const cv::Mat& frame, const Detection& det, bool calibrated);
 

@@ -10,13 +10,13 @@ namespace {
 
 double cross(double ax, double ay, double bx, double by) { return ax * by - ay * bx; }
 
-// Line parameters (t) where both contacts are, from the two opposite rays of line k.
+// Line parameters (t) of both contacts from the two opposite rays of line k: the outermost crossing on each
+// side of the centroid. false when one side has no crossing (a one-sided chord is no grip: its "opening" can be 0).
 bool line_from_rays(const RayHits& h, int k, int lines, double& tmin, double& tmax) {
-  double fmax = h.rmax[size_t(k)], fmin = h.rmin[size_t(k)];
-  double bmax = h.rmax[size_t(k + lines)], bmin = h.rmin[size_t(k + lines)];
-  if (fmax < 0 && bmax < 0) return false;
-  tmax = fmax >= 0 ? fmax : -bmin;
-  tmin = bmax >= 0 ? -bmax : fmin;
+  double fmax = h.rmax[size_t(k)], bmax = h.rmax[size_t(k + lines)];
+  if (fmax <= 0 || bmax <= 0) return false;
+  tmax = fmax;
+  tmin = -bmax;
   return true;
 }
 
@@ -110,6 +110,17 @@ bool chord_at(const Geometry& g, double phi, double& tmin, double& tmax) {
   return any;
 }
 
+const char* grip_reason_name(GripReason r) {
+  switch (r) {
+    case GripReason::TooWide: return "too_wide";
+    case GripReason::TooNarrow: return "too_narrow";
+    case GripReason::NoContact: return "no_contact";
+    case GripReason::FingerCollision: return "finger_collision";
+    case GripReason::None: break;
+  }
+  return nullptr;
+}
+
 Grip choose_grip(const Geometry& g, const RayHits& hits, int own_label, const cv::Mat& labels,
                  const std::vector<uint8_t>& obstacle, const GripOptions& opt, std::vector<double>& phi,
                  std::vector<double>& d) {
@@ -125,7 +136,10 @@ Grip choose_grip(const Geometry& g, const RayHits& hits, int own_label, const cv
     phi.push_back(k * step);
     d.push_back(tmax - tmin);
   }
-  if (phi.empty()) return {};
+  Grip none;
+  none.feasible = false, none.reason = GripReason::NoContact;
+  none.p1 = none.p2 = g.centroid;
+  if (phi.empty()) return none;
   // D is flat near its minimum (quadratic for parallel sides) and the sub-pixel contour carries ~0.1 px of
   // noise, so the raw argmin wanders over the flat part. Rank lines by D averaged over +-3 degrees instead:
   // symmetric minima stay put, and the opening reported is still the exact chord on the chosen line.
@@ -145,22 +159,38 @@ Grip choose_grip(const Geometry& g, const RayHits& hits, int own_label, const cv
   }
   std::sort(order.begin(), order.end(), [&](int a, int b) { return smooth[size_t(a)] < smooth[size_t(b)]; });
 
+  auto open = [&](int k) { return hi[size_t(k)] - lo[size_t(k)]; };
+  auto in_range = [&](int k) {
+    return open(k) >= std::max(opt.min_opening_px, 1e-6) && (opt.max_opening_px <= 0 || open(k) <= opt.max_opening_px);
+  };
   auto clear_at = [&](double ph, double tmin, double tmax) {
     cv::Point2d u(std::cos(ph), std::sin(ph));
     return !finger_blocked(g.centroid + tmax * u, u, own_label, labels, obstacle, opt) &&
            !finger_blocked(g.centroid + tmin * u, -u, own_label, labels, obstacle, opt);
   };
-  int best = -1;
+  int best = -1, first_in_range = -1;
   for (int k : order) {
+    if (!in_range(k)) continue;
+    if (first_in_range < 0) first_in_range = k;
     if (clear_at(k * step, lo[size_t(k)], hi[size_t(k)])) {
       best = k;
       break;
     }
   }
-  bool clear = best >= 0;
-  if (!clear) best = order.front();
-  Grip out = make_grip(g, best * step, lo[size_t(best)], hi[size_t(best)]);
-  out.clear = clear;
+  GripReason reason = GripReason::None;
+  int shown = best;
+  if (best < 0 && first_in_range >= 0) {
+    reason = GripReason::FingerCollision;
+    shown = first_in_range;
+  } else if (best < 0) {
+    // Nothing in range: the narrowest real chord tells which way it misses.
+    shown = order.front();
+    reason = open(shown) < opt.min_opening_px ? GripReason::TooNarrow : GripReason::TooWide;
+  }
+  Grip out = make_grip(g, shown * step, lo[size_t(shown)], hi[size_t(shown)]);
+  out.clear = reason != GripReason::FingerCollision;
+  out.reason = reason;
+  out.feasible = reason == GripReason::None;
   return out;
 }
 

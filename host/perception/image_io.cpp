@@ -1,7 +1,10 @@
 // image_io.cpp - image file reading with header checks, so corrupt or huge files fail with one clear line.
 #include "image_io.hpp"
 
+#include <algorithm>
 #include <cstdint>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <vector>
 
@@ -55,6 +58,55 @@ bool size_ok(long long w, long long h, std::string& error) {
   return true;
 }
 
+// A file cut short still decodes (libjpeg fills the rest with grey, libpng may stop after the last full row):
+// a JPEG must have its end-of-image marker after the first scan, a PNG its IEND chunk at the end.
+bool complete(const std::vector<unsigned char>& b) {
+  if (b.size() >= 8 && b[0] == 0x89 && b[1] == 'P' && b[2] == 'N' && b[3] == 'G') {
+    static const unsigned char iend[] = {'I', 'E', 'N', 'D'};
+    size_t from = b.size() > 64 ? b.size() - 64 : 0;
+    return std::search(b.begin() + long(from), b.end(), iend, iend + 4) != b.end();
+  }
+  if (b.size() >= 2 && b[0] == 0xFF && b[1] == 0xD8) {
+    size_t i = 2, sos = 0;
+    while (i + 3 < b.size()) {  // walk the marker segments up to the first scan
+      if (b[i] != 0xFF) return false;
+      if (b[i + 1] == 0xDA) {
+        sos = i;
+        break;
+      }
+      i += 2 + ((size_t(b[i + 2]) << 8) | b[i + 3]);
+    }
+    if (sos == 0) return false;
+    for (size_t j = b.size() - 1; j > sos + 1; --j)  // entropy data stuffs 0xFF as FF 00: FF D9 is the end
+      if (b[j] == 0xD9 && b[j - 1] == 0xFF) return true;
+    return false;
+  }
+  return true;  // other formats: the decoder's own checks
+}
+
+// Significant bits of a 16-bit PNG: its sBIT chunk when present, else the smallest depth holding the data
+// (a 10-bit sensor image stored in 16 bits uses 0..1023).
+int significant_bits(const std::vector<unsigned char>& b, const cv::Mat& img) {
+  if (b.size() >= 8 && b[0] == 0x89 && b[1] == 'P') {
+    size_t i = 8;
+    while (i + 12 <= b.size()) {
+      size_t len = be32(&b[i]);
+      if (std::memcmp(&b[i + 4], "sBIT", 4) == 0 && len >= 1 && i + 8 + len <= b.size()) {
+        int bits = 0;
+        for (size_t k = 0; k < len; ++k) bits = std::max(bits, int(b[i + 8 + k]));
+        if (bits >= 1 && bits <= 16) return bits;
+      }
+      if (std::memcmp(&b[i + 4], "IDAT", 4) == 0) break;
+      i += 12 + len;
+    }
+  }
+  double mx = 0;
+  cv::minMaxLoc(img.reshape(1), nullptr, &mx);
+  int bits = 8;
+  while (bits < 16 && mx > double((1 << bits) - 1)) ++bits;
+  return bits;
+}
+
 }  // namespace
 
 bool check_frame(const cv::Mat& frame, std::string& error) {
@@ -70,6 +122,16 @@ bool check_frame(const cv::Mat& frame, std::string& error) {
 }
 
 bool read_image(const std::string& path, cv::Mat& out, std::string& error) {
+  std::error_code ec;
+  auto st = std::filesystem::status(path, ec);
+  if (std::filesystem::is_directory(st)) {
+    error = path + ": is a folder, not an image file";
+    return false;
+  }
+  if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st)) {
+    error = path + ": not a regular file";
+    return false;
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     error = path + ": cannot be read";
@@ -97,6 +159,10 @@ bool read_image(const std::string& path, cv::Mat& out, std::string& error) {
     error = path + ": " + why;
     return false;
   }
+  if (!complete(bytes)) {
+    error = path + ": not a readable image (truncated or corrupt: no end marker)";
+    return false;
+  }
   cv::Mat img;
   // Codec libraries (libpng, libjpeg) print their own complaints on stderr; the caller's one line says it all.
   int saved = ::dup(2), devnull = ::open("/dev/null", O_WRONLY);
@@ -115,6 +181,13 @@ bool read_image(const std::string& path, cv::Mat& out, std::string& error) {
   if (!check_frame(img, why)) {
     error = path + ": " + why;
     return false;
+  }
+  if (img.depth() == CV_16U) {
+    // Keep the contrast of high-bit-depth data: scale its significant range, not the full 16 bits, to 8 bits.
+    int bits = significant_bits(bytes, img);
+    cv::Mat t;
+    img.convertTo(t, CV_8U, 255.0 / double((1 << bits) - 1));
+    img = t;
   }
   out = img;
   return true;

@@ -13,8 +13,10 @@ namespace {
 // hi = level - 2 sigma around the object's contrast level (median over its pixels), so noise leaves the
 // interior at 1 and the table at 0 while the anti-aliased edge keeps its covered fraction (half level =
 // level / 2). Pixels of other objects are 0.
-void make_layer(const Contrast& con, const cv::Mat& labels, int label, cv::Rect roi, double threshold, Layer& layer) {
-  cv::Mat lab = labels(roi), d = con.contrast(roi);
+void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign, cv::Rect roi, double threshold,
+                Layer& layer) {
+  cv::Mat lab = labels(roi), d = con.contrast(roi, sign);
+  layer.sign = sign;
   // Median contrast over the component (a histogram: contrast is an integer within +-255).
   int hist[512] = {0}, n = 0;
   for (int y = 0; y < roi.height; ++y) {
@@ -30,6 +32,7 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, cv::Rect 
       break;
     }
   const double level = std::max<double>(med, threshold);
+  layer.level = level;
   const double lo = std::min(2 * con.noise_sigma, level * 0.25), hi = std::max(level - 2 * con.noise_sigma, level * 0.75);
   const float a = float(1.0 / (hi - lo)), b = float(-lo / (hi - lo)), half = float(level / 2);
   // The object at its half level, then the soft edge within 2 px of it: a shadow or glare joined to the
@@ -65,22 +68,80 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, cv::Rect 
   if (!layer.pieces.empty()) layer.outer = layer.pieces.front().second;
 }
 
+// Both polarities: a region attached (within 2 px) to an object of the other polarity that has fringe_ratio
+// times its contrast is that object's shadow or glare (a white ball's shadow on a grey table): not an object,
+// and no obstacle for the fingers.
+void drop_fringes(const IsolationOptions& opt, Isolation& out) {
+  std::vector<double> level(out.sign.size(), 0);
+  for (const Layer& l : out.layers) level[size_t(l.label)] = l.level;
+  std::vector<char> fringe(out.layers.size(), 0);
+  const cv::Rect frame(0, 0, out.labels.cols, out.labels.rows);
+  for (size_t i = 0; i < out.layers.size(); ++i) {
+    const Layer& l = out.layers[i];
+    cv::Rect r = cv::Rect(l.roi.x - 2, l.roi.y - 2, l.roi.width + 4, l.roi.height + 4) & frame;
+    cv::Mat own = out.labels(r) == l.label, near;
+    cv::dilate(own, near, cv::Mat(), cv::Point(-1, -1), 2);
+    cv::Mat lab = out.labels(r);
+    for (int y = 0; y < r.height && !fringe[i]; ++y) {
+      const int* lr = lab.ptr<int>(y);
+      const uchar* nr = near.ptr<uchar>(y);
+      for (int x = 0; x < r.width; ++x) {
+        int o = lr[x];
+        if (!nr[x] || o <= 0 || out.sign[size_t(o)] == l.sign) continue;
+        if (level[size_t(o)] >= opt.fringe_ratio * l.level) {
+          fringe[i] = 1;
+          break;
+        }
+      }
+    }
+  }
+  std::vector<Layer> kept;
+  for (size_t i = 0; i < out.layers.size(); ++i) {
+    if (fringe[i]) {
+      ++out.fringes;
+      out.obstacle[size_t(out.layers[i].label)] = 0;
+    } else {
+      kept.push_back(std::move(out.layers[i]));
+    }
+  }
+  out.layers = std::move(kept);
+}
+
 }  // namespace
 
 bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, std::string& error) {
   const cv::Mat& d = con.gray;
   out.threshold = std::max(opt.min_contrast, opt.noise_k * con.noise_sigma);
-  cv::Mat bin = con.above(out.threshold);
-  cv::morphologyEx(bin, bin, cv::MORPH_OPEN, cv::Mat());  // cleaning: isolated noise pixels and hairlines
-  double fg = double(cv::countNonZero(bin)) / double(bin.total());
+  // One binary image per polarity (both in auto mode), labelled apart so that a dark and a light object
+  // side by side stay two regions; their labels share one image.
+  const std::vector<int> signs = con.sign == 0 ? std::vector<int>{-1, +1} : std::vector<int>{con.sign};
+  out.labels = cv::Mat(d.size(), CV_32S, cv::Scalar(0));
+  out.obstacle.assign(1, 0);
+  out.sign.assign(1, 0);
+  cv::Mat stats(0, cv::CC_STAT_MAX, CV_32S);
+  stats.push_back(cv::Mat(1, cv::CC_STAT_MAX, CV_32S, cv::Scalar(0)));
+  long long fg_pixels = 0;
+  for (int sg : signs) {
+    cv::Mat bin = con.above(out.threshold, sg), lab, st, cen;
+    cv::morphologyEx(bin, bin, cv::MORPH_OPEN, cv::Mat());  // cleaning: isolated noise pixels and hairlines
+    fg_pixels += cv::countNonZero(bin);
+    int n = cv::connectedComponentsWithStats(bin, lab, st, cen, 8, CV_32S);
+    const int offset = int(out.sign.size()) - 1;
+    if (offset > 0) cv::add(lab, cv::Scalar(offset), lab, bin);
+    out.labels += lab;
+    for (int i = 1; i < n; ++i) {
+      stats.push_back(st.row(i));
+      out.sign.push_back(int8_t(sg));
+      out.obstacle.push_back(0);
+    }
+  }
+  double fg = double(fg_pixels) / double(d.total());
   if (fg > opt.max_foreground) {
     error = "frame is " + std::to_string(int(std::lround(fg * 100))) +
             "% foreground: wrong background image or polarity, or no table in view";
     return false;
   }
-  cv::Mat stats, centroids;
-  int n = cv::connectedComponentsWithStats(bin, out.labels, stats, centroids, 8, CV_32S);
-  out.obstacle.assign(size_t(n), 0);
+  const int n = stats.rows;
   struct Cand { int label; cv::Rect box; };
   std::vector<Cand> keep;
   for (int i = 1; i < n; ++i) {
@@ -105,7 +166,8 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
   };
   for (const Cand& k : keep) {
     Layer layer;
-    make_layer(con, out.labels, k.label, grow(k.box), out.threshold, layer);
+    const int sg = out.sign[size_t(k.label)];
+    make_layer(con, out.labels, k.label, sg, grow(k.box), out.threshold, layer);
     // Near objects joined by their blurred edges at the low threshold come apart at the half level:
     // each piece big enough becomes an object of its own, with a new label.
     int big = 0;
@@ -116,24 +178,55 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
         continue;
       }
       layer.pieces.clear();
-      out.layers.push_back(std::move(layer));
+      cv::Mat parts;
+      SplitOptions so = opt.split;
+      so.min_area_px = opt.min_area_px;
+      int bodies = opt.split_touching ? split_touching(layer.inside, so, parts) : 1;
+      if (bodies <= 1) {
+        out.layers.push_back(std::move(layer));
+        continue;
+      }
+      // Touching objects: each body gets a label of its own; the soft edge band around the bodies (the
+      // component's pixels outside the half level) goes to the nearest body.
+      cv::Mat lab = out.labels(layer.roi), own = lab == k.label, p16;
+      parts.convertTo(p16, CV_16U);
+      for (int i = 0; i < opt.margin_px + 2; ++i) {
+        cv::Mat grown;
+        cv::dilate(p16, grown, cv::Mat());
+        grown.copyTo(p16, (p16 == 0) & own);
+      }
+      for (int b = 1; b <= bodies; ++b) {
+        int id = int(out.obstacle.size());
+        out.obstacle.push_back(1);
+        out.sign.push_back(int8_t(sg));
+        cv::Mat body = (p16 == b) & own;
+        lab.setTo(id, body);
+        cv::Rect box = cv::boundingRect(body) + layer.roi.tl();
+        Layer piece;
+        make_layer(con, out.labels, id, sg, grow(box), out.threshold, piece);
+        piece.pieces.clear();
+        piece.touching = true;
+        if (cv::countNonZero(piece.inside) >= opt.min_area_px) out.layers.push_back(std::move(piece));
+      }
       continue;
     }
     for (const auto& p : layer.pieces) {
       if (p.first < opt.min_area_px) continue;
       int id = int(out.obstacle.size());
       out.obstacle.push_back(1);
+      out.sign.push_back(int8_t(sg));
       cv::Mat mask(layer.roi.size(), CV_8U, cv::Scalar(0));
       cv::drawContours(mask, std::vector<std::vector<cv::Point>>{p.second}, 0, cv::Scalar(255), cv::FILLED);
       cv::Mat lab = out.labels(layer.roi);
       lab.setTo(id, mask & (lab == k.label));
       cv::Rect box = cv::boundingRect(p.second) + layer.roi.tl();
       Layer piece;
-      make_layer(con, out.labels, id, grow(box), out.threshold, piece);
+      make_layer(con, out.labels, id, sg, grow(box), out.threshold, piece);
       piece.pieces.clear();
       if (cv::countNonZero(piece.inside) >= opt.min_area_px) out.layers.push_back(std::move(piece));
     }
   }
+  if (signs.size() == 2) drop_fringes(opt, out);
   // Detection order: by rows of the top edge, then left to right (split pieces included).
   std::stable_sort(out.layers.begin(), out.layers.end(), [](const Layer& a, const Layer& b) {
     return a.roi.y != b.roi.y ? a.roi.y < b.roi.y : a.roi.x < b.roi.x;

@@ -6,6 +6,7 @@
 #include <opencv2/core.hpp>
 
 #include "background.hpp"
+#include "split.hpp"
 #include "types.hpp"
 
 namespace rbx1::vision {
@@ -16,14 +17,20 @@ struct IsolationOptions {
   int min_area_px = 40;          // smaller regions are specks
   double max_foreground = 0.80;  // a larger foreground fraction means a wrong background or no table in view
   int margin_px = 4;             // ROI margin around each object (covers the blurred edge band)
+  bool split_touching = true;    // cut touching objects apart at their necks
+  double fringe_ratio = 1.5;     // a region attached to an object of the other polarity with this many times
+                                 // its contrast is that object's shadow or glare, not an object
+  SplitOptions split;
 };
 
 struct Isolation {
   cv::Mat labels;                 // CV_32S frame: 0 background, else a connected region's id
   std::vector<uint8_t> obstacle;  // per label: 1 when the region is big enough to block a finger
+  std::vector<int8_t> sign;       // per label: -1 darker than the background, +1 lighter
   std::vector<Layer> layers;      // the kept objects, in detection order (top to bottom, left to right)
   double threshold = 0;
   int specks = 0, border = 0;     // regions dropped
+  int fringes = 0;                // faint regions of the other polarity attached to an object (shadow, glare)
 };
 
 // false + error only for a frame that is nearly all foreground.

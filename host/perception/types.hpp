@@ -18,6 +18,9 @@ struct Layer {
   cv::Mat inside;    // CV_8U roi: 255 where soft >= 0.5 (the object's binary layer)
   std::vector<cv::Point> outer;  // outer boundary pixels of inside (largest piece), roi coordinates
   std::vector<std::pair<double, std::vector<cv::Point>>> pieces;  // isolation only: pieces by area
+  bool touching = false;  // cut from a region it shared with a touching neighbour
+  int sign = -1;          // -1: darker than the background, +1: lighter
+  double level = 0;       // median contrast of the object (grey levels)
 };
 
 // An edge point (paper Eq. 1-2) moved to its sub-pixel position, in frame pixels; w = contour length it stands for.
@@ -41,12 +44,17 @@ struct Pose {
   bool elongated = false;
 };
 
+// Why a grip is not feasible (shared/DESIGN.md: grip.reason).
+enum class GripReason { None, TooWide, TooNarrow, NoContact, FingerCollision };
+const char* grip_reason_name(GripReason r);  // "too_wide", ...; nullptr for None
+
 struct Grip {
   cv::Point2d p1, p2;           // contact points; p1 -> p2 is the closing direction
   double opening_px = 0;
   double angle_deg = 0;         // direction p1 -> p2, (-90, 90]
   bool clear = true;            // fingers do not land on another object
-  bool feasible = true;
+  bool feasible = false;        // both contacts real, opening within the gripper, fingers clear
+  GripReason reason = GripReason::NoContact;
   std::optional<double> opening_cm;
 };
 
@@ -64,6 +72,7 @@ struct DetectedObject {
   Identity identity;
   std::vector<double> chord_phi, chord_d;  // D(phi) for phi in [0, pi): the gripper opening per closing direction
   std::optional<cv::Point2d> centroid_cm;
+  bool touching = false;  // split from a neighbour it touched (its grip checks that neighbour's clearance)
 };
 
 }  // namespace rbx1::vision

@@ -32,13 +32,19 @@ void parse_vision_config(rbx1::config::Section v, VisionOptions& out) {
   out.px_per_cm = v.number("px_per_cm", out.px_per_cm, 0, 1e5);
   out.calibration_path = v.string("calibration", out.calibration_path);
   out.gripper_max_cm = v.number("gripper_max_cm", out.gripper_max_cm, 0.1, 100);
+  out.gripper_min_cm = v.number("gripper_min_cm", out.gripper_min_cm, 0, 100);
+  out.gripper_min_px = v.number("gripper_min_px", out.gripper_min_px, 0, 10000);
   out.finger_width_cm = v.number("finger_width_cm", out.finger_width_cm, 0, 20);
   out.finger_depth_cm = v.number("finger_depth_cm", out.finger_depth_cm, 0, 20);
   out.finger_width_px = v.number("finger_width_px", out.finger_width_px, 0, 1000);
   out.finger_depth_px = v.number("finger_depth_px", out.finger_depth_px, 0, 1000);
-  out.min_area_px = int(v.integer("min_area_px", out.min_area_px, 1, 1'000'000));
+  out.min_area_px = int(v.integer("min_area_px", out.min_area_px, 0, 1'000'000));
   out.match_threshold = v.number("match_threshold", out.match_threshold, 0, 1);
   v.reject_unknown();
+}
+
+int min_area_for(cv::Size frame) {
+  return std::max(12, int(std::lround(40.0 * double(frame.area()) / (640.0 * 480.0))));
 }
 
 std::unique_ptr<Vision> Vision::create(const VisionOptions& opt, std::string& error) {
@@ -50,6 +56,10 @@ std::unique_ptr<Vision> Vision::create(const VisionOptions& opt, std::string& er
   }
   if (!(opt.gripper_max_cm > 0)) {
     error = "gripper_max_cm must be positive";
+    return nullptr;
+  }
+  if (!(opt.gripper_min_cm >= 0 && opt.gripper_min_cm < opt.gripper_max_cm)) {
+    error = "gripper_min_cm must be at least 0 and below gripper_max_cm";
     return nullptr;
   }
   if (!opt.calibration_path.empty()) {
@@ -85,24 +95,31 @@ bool Vision::run(const cv::Mat& frame, Detection& det, cv::Mat& processed, std::
     return false;
   }
   DetectorOptions d = det_;
+  if (opt_.min_area_px <= 0) d.isolation.min_area_px = min_area_for(gray.size());
   cv::Point2d centre((gray.cols - 1) / 2.0, (gray.rows - 1) / 2.0);
   if (scale_) {
     double s = scale_->px_per_cm_at(centre);
     d.px_per_cm = s;
     d.grip.finger_width_px = opt_.finger_width_cm * s;
     d.grip.finger_depth_px = opt_.finger_depth_cm * s;
+    d.grip.min_opening_px = std::max(1.0, opt_.gripper_min_cm * s);
+    d.grip.max_opening_px = opt_.gripper_max_cm * s;
   } else {
     d.grip.finger_width_px = opt_.finger_width_px;
     d.grip.finger_depth_px = opt_.finger_depth_px;
+    d.grip.min_opening_px = std::max(1.0, opt_.gripper_min_px);
   }
   if (!detect(gray, background_, d, has_library_ ? &library_ : nullptr, det, error)) return false;
   for (DetectedObject& o : det.objects) {
-    o.grip.feasible = o.grip.clear;
-    if (scale_) {
-      o.centroid_cm = scale_->to_cm(o.geometry.centroid);
-      o.grip.opening_cm = scale_->distance_cm(o.grip.p1, o.grip.p2);
-      if (*o.grip.opening_cm > opt_.gripper_max_cm) o.grip.feasible = false;
-    }
+    if (!scale_) continue;
+    o.centroid_cm = scale_->to_cm(o.geometry.centroid);
+    if (o.grip.reason == GripReason::NoContact) continue;
+    // The scale varies over an undistorted frame: the exact opening in cm has the last word.
+    o.grip.opening_cm = scale_->distance_cm(o.grip.p1, o.grip.p2);
+    if (!o.grip.feasible) continue;
+    if (*o.grip.opening_cm > opt_.gripper_max_cm) o.grip.reason = GripReason::TooWide;
+    else if (*o.grip.opening_cm < opt_.gripper_min_cm) o.grip.reason = GripReason::TooNarrow;
+    o.grip.feasible = o.grip.reason == GripReason::None;
   }
   return true;
 }
@@ -141,7 +158,9 @@ nlohmann::json Vision::to_json(const Detection& det) const {
                  {"opening_px", round_to(o.grip.opening_px, 1e-3)},
                  {"opening_cm", o.grip.opening_cm ? json(round_to(*o.grip.opening_cm, 1e-4)) : json(nullptr)},
                  {"angle_deg", round_to(o.grip.angle_deg, 1e-3)},
-                 {"feasible", o.grip.feasible}};
+                 {"feasible", o.grip.feasible},
+                 {"reason", o.grip.feasible ? json(nullptr) : json(grip_reason_name(o.grip.reason))}};
+    j["touching"] = o.touching;
     doc["objects"].push_back(j);
   }
   return doc;
@@ -168,9 +187,12 @@ std::string Vision::report(const Detection& det) const {
     std::snprintf(line, sizeof line, "Gripper orientation: %.2f degrees w.r.t. robotic arm horizontal reference axis.\n",
                   o.grip.angle_deg);
     out += line;
-    if (!o.grip.feasible) {
-      out += !o.grip.clear ? "Not pickable: every grip puts a finger on a neighbouring object.\n"
-                           : "Not pickable: wider than the gripper.\n";
+    switch (o.grip.feasible ? GripReason::None : o.grip.reason) {
+      case GripReason::TooWide: out += "Not pickable: wider than the gripper.\n"; break;
+      case GripReason::TooNarrow: out += "Not pickable: narrower than the gripper's smallest opening.\n"; break;
+      case GripReason::NoContact: out += "Not pickable: no closing line meets the object on both sides.\n"; break;
+      case GripReason::FingerCollision: out += "Not pickable: every grip puts a finger on a neighbouring object.\n"; break;
+      case GripReason::None: break;
     }
   }
   return out;

@@ -21,10 +21,12 @@ struct VisionOptions {
   double px_per_cm = 0;          // 0 and no calibration_path: uncalibrated (cm fields null)
   std::string calibration_path;
   double gripper_max_cm = 5.0;
+  double gripper_min_cm = 0.2;   // narrower openings are no grip (calibrated)
+  double gripper_min_px = 2;     // the same when uncalibrated
   // Finger geometry for the clearance check: width across the closing line, depth outward from the contact.
   double finger_width_cm = 1.0, finger_depth_cm = 1.0;  // used when calibrated
   double finger_width_px = 0, finger_depth_px = 0;      // used when uncalibrated (0: no check)
-  int min_area_px = 40;          // smaller regions are specks
+  int min_area_px = 0;           // smaller regions are specks; 0: scaled with the frame (min_area_for)
   double match_threshold = 0.5;  // identification score below this: unknown
 };
 
@@ -32,6 +34,9 @@ struct VisionOptions {
 void parse_vision_config(rbx1::config::Section vision, VisionOptions& out);
 // "auto" | "dark" | "light" -> Polarity; false for anything else.
 bool parse_polarity(const std::string& text, Polarity& out);
+
+// The speck size for a frame: 40 px at 640x480, in proportion to the frame's area (at least 12 px).
+int min_area_for(cv::Size frame);
 
 class Vision {
  public:

@@ -28,6 +28,27 @@ Detection run(const std::vector<Poly>& polys, double finger_w = 0, double finger
   return d;
 }
 
+// The narrowest chord through pt whose outermost crossings lie on both sides of pt (0.05-degree steps).
+double min_chord_two_sided(const Poly& poly, cv::Point2d pt) {
+  double best = 1e300;
+  for (int k = 0; k < 3600; ++k) {
+    double phi = k * M_PI / 3600;
+    cv::Point2d u(std::cos(phi), std::sin(phi));
+    double lo = 1e300, hi = -1e300;
+    for (size_t i = 0; i < poly.size(); ++i) {
+      cv::Point2d a = poly[i] - pt, d = poly[(i + 1) % poly.size()] - poly[i];
+      double den = u.x * d.y - u.y * d.x;
+      if (std::abs(den) < 1e-12) continue;
+      double s = (a.x * u.y - a.y * u.x) / den;
+      if (s < 0 || s > 1) continue;
+      double t = (a.x * d.y - a.y * d.x) / den;
+      lo = std::min(lo, t), hi = std::max(hi, t);
+    }
+    if (lo < 0 && hi > 0) best = std::min(best, hi - lo);
+  }
+  return best;
+}
+
 // Distance from p to the polygon's boundary.
 double to_boundary(const Poly& poly, cv::Point2d p) {
   double best = 1e300;
@@ -53,13 +74,18 @@ TEST(Grip, RectangleIsGrippedAcrossItsWidth) {
 }
 
 TEST(Grip, NonConvexObjectGetsOutermostContactsNotConcavityHits) {
-  // A U shape: the paper's r(theta) + r(theta + pi) from the first ray hits would close inside the notch.
+  // A U shape: the paper's r(theta) + r(theta + pi) from the first ray hits would close inside the notch. Its
+  // centroid lies in the notch, so the bridge alone (crossed on one side of the centroid only) is no grip:
+  // the fingers take the narrowest line with contacts on both sides.
   Poly u = {{200, 180}, {330, 180}, {330, 300}, {290, 300}, {290, 220}, {240, 220}, {240, 300}, {200, 300}};
   cv::Point2d c = poly_centroid(u);
   Detection d = run({u});
   ASSERT_EQ(d.objects.size(), 1u);
   const Grip& g = d.objects[0].grip;
-  EXPECT_NEAR(g.opening_px, min_chord(u, c), 1.0);
+  EXPECT_TRUE(g.feasible);
+  EXPECT_LT(min_chord(u, c), 45);  // the old one-sided answer: the bridge, 40 px
+  EXPECT_NEAR(g.opening_px, min_chord_two_sided(u, c), 1.0);
+  EXPECT_LT((g.p1 - c).dot(g.p2 - c), 0);  // contacts on opposite sides of the centroid
   EXPECT_LT(to_boundary(u, g.p1), 0.6);
   EXPECT_LT(to_boundary(u, g.p2), 0.6);
   // The fingers close from outside: nothing of the object lies beyond either contact along the line.
@@ -116,6 +142,142 @@ TEST(Grip, NoClearGripIsInfeasible) {
     if (cv::norm(o.geometry.centroid - cv::Point2d(300, 240)) < 1) disc = &o;
   ASSERT_TRUE(disc);
   EXPECT_FALSE(disc->grip.clear);
+}
+
+}  // namespace
+}  // namespace rbx1::vision
+
+namespace rbx1::vision {
+namespace {
+
+using namespace test;
+
+// A geometry whose contour is the polygon itself, densified to 0.5 px steps like a measured contour (no
+// isolation), centroid set by hand.
+Geometry polygon_geometry(const Poly& p, cv::Point2d centroid) {
+  Geometry g;
+  g.centroid = centroid;
+  for (size_t i = 0; i < p.size(); ++i) {
+    cv::Point2d a = p[i], b = p[(i + 1) % p.size()];
+    int n = std::max(1, int(std::ceil(cv::norm(b - a) / 0.5)));
+    for (int k = 0; k < n; ++k) g.contour.push_back({a.x + (b.x - a.x) * k / n, a.y + (b.y - a.y) * k / n, 1});
+  }
+  return g;
+}
+
+Grip grip_of(const Geometry& g, const GripOptions& o) {
+  std::vector<double> phi, d;
+  return choose_grip(g, cast_rays(g, o.lines), 0, cv::Mat(), {}, o, phi, d);
+}
+
+TEST(GripSafety, CentroidOutsideTheObjectHasNoOneSidedZeroWidthGrip) {
+  // A thin arc (a C) whose centroid lies outside it: lines through the centroid cross the arc on one side
+  // only on most directions; the old rule turned those into 0-width chords and picked them as the minimum.
+  Poly c;
+  for (int i = 0; i <= 60; ++i) c.push_back({300 + 80 * std::cos(i * M_PI / 60), 240 + 80 * std::sin(i * M_PI / 60)});
+  for (int i = 60; i >= 0; --i) c.push_back({300 + 70 * std::cos(i * M_PI / 60), 240 + 70 * std::sin(i * M_PI / 60)});
+  Geometry g = polygon_geometry(c, {300, 290});  // inside the arc's bowl: below it, off the material
+  GripOptions o;
+  Grip gr = grip_of(g, o);
+  if (gr.feasible) {
+    EXPECT_GT(gr.opening_px, o.min_opening_px);
+    // Real contacts on both sides of the centroid.
+    EXPECT_LT((gr.p1 - g.centroid).dot(gr.p2 - g.centroid), 0);
+  } else {
+    EXPECT_NE(gr.reason, GripReason::None);
+  }
+  // The arc seen from outside (centroid above it): every line through it meets the arc on one side only.
+  Geometry above = polygon_geometry(c, {300, 100});
+  Grip none = grip_of(above, o);
+  EXPECT_FALSE(none.feasible);
+  EXPECT_EQ(none.reason, GripReason::NoContact);
+}
+
+TEST(GripSafety, ZeroWidthIsNeverFeasible) {
+  Geometry g = polygon_geometry(rectangle({300, 240}, 100, 40, 0), {300, 240});
+  GripOptions o;
+  o.min_opening_px = 0;  // even when the caller allows it
+  Grip gr = grip_of(g, o);
+  EXPECT_TRUE(gr.feasible);
+  EXPECT_NEAR(gr.opening_px, 40, 1e-6);
+  Geometry empty;
+  empty.centroid = {10, 10};
+  Grip e = grip_of(empty, o);
+  EXPECT_FALSE(e.feasible);
+  EXPECT_EQ(e.reason, GripReason::NoContact);
+  EXPECT_EQ(e.opening_px, 0);
+}
+
+TEST(GripSafety, TooNarrowAndTooWide) {
+  Geometry g = polygon_geometry(rectangle({300, 240}, 100, 4, 20), {300, 240});
+  GripOptions o;
+  o.min_opening_px = 5;
+  o.max_opening_px = 50;  // the wire is 4 px across, 100 px along: nothing in [5, 50] except diagonals?
+  Grip gr = grip_of(g, o);
+  // Lines through the centre of a 100x4 bar: chords are 4/|sin a| up to 100; those in [5, 50] exist (near
+  // the short axis), so the narrowest of them is taken: a diagonal grip on a wire would slip, but it is real.
+  if (gr.feasible) {
+    EXPECT_GE(gr.opening_px, 5);
+    EXPECT_LE(gr.opening_px, 50);
+  }
+  o.max_opening_px = 4.5;
+  Grip narrow = grip_of(g, o);
+  EXPECT_FALSE(narrow.feasible);
+  EXPECT_EQ(narrow.reason, GripReason::TooNarrow);
+  Geometry big = polygon_geometry(ellipse({300, 240}, 90, 80, 0), {300, 240});
+  o.min_opening_px = 2, o.max_opening_px = 100;
+  Grip wide = grip_of(big, o);
+  EXPECT_FALSE(wide.feasible);
+  EXPECT_EQ(wide.reason, GripReason::TooWide);
+  EXPECT_NEAR(wide.opening_px, 160, 0.5);
+  EXPECT_STREQ(grip_reason_name(wide.reason), "too_wide");
+  EXPECT_STREQ(grip_reason_name(narrow.reason), "too_narrow");
+  EXPECT_EQ(grip_reason_name(GripReason::None), nullptr);
+}
+
+TEST(GripSafety, BoxedInDiscSaysFingerCollision) {
+  std::vector<Poly> polys = {ellipse({300, 240}, 30, 30, 0)};
+  for (int i = 0; i < 12; ++i) {
+    double a = i * M_PI / 6;
+    polys.push_back(ellipse({300 + 44 * std::cos(a), 240 + 44 * std::sin(a)}, 9, 9, 0));
+  }
+  Detection d = run(polys, 12, 12);
+  for (const auto& o : d.objects) {
+    if (cv::norm(o.geometry.centroid - cv::Point2d(300, 240)) > 1) continue;
+    EXPECT_FALSE(o.grip.feasible);
+    EXPECT_EQ(o.grip.reason, GripReason::FingerCollision);
+    return;
+  }
+  FAIL() << "disc not found";
+}
+
+}  // namespace
+}  // namespace rbx1::vision
+
+#include "draw.hpp"
+
+namespace rbx1::vision {
+namespace {
+
+using namespace test;
+
+TEST(Annotate, NumbersSitOnTheirOwnObjects) {
+  // Close neighbours and a U whose centroid is off the material: every label anchor is on its own object.
+  Poly u = {{200, 180}, {330, 180}, {330, 300}, {290, 300}, {290, 220}, {240, 220}, {240, 300}, {200, 300}};
+  std::vector<Poly> polys = {u, rectangle({420, 240}, 140, 30, 80), rectangle({460, 240}, 140, 30, 80),
+                             ellipse({120, 400}, 20, 20, 0)};
+  Detection d = run(polys);
+  ASSERT_EQ(d.objects.size(), 4u);
+  for (const auto& o : d.objects) {
+    cv::Point2d a = label_anchor(o);
+    int own = 0;
+    for (const Poly& p : polys) {
+      std::vector<cv::Point2f> pf;
+      for (auto v : p) pf.emplace_back(float(v.x), float(v.y));
+      if (cv::pointPolygonTest(pf, cv::Point2f(a), false) > 0) own += cv::norm(poly_centroid(p) - o.geometry.centroid) < 2;
+    }
+    EXPECT_EQ(own, 1) << "object #" << o.index;
+  }
 }
 
 }  // namespace

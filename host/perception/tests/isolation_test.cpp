@@ -45,7 +45,8 @@ TEST(Isolation, LightObjectsOnDarkTable) {
   Detection d;
   std::string e;
   ASSERT_TRUE(detect(to_gray8(img), {}, {}, nullptr, d, e));
-  EXPECT_EQ(d.sign, +1);
+  ASSERT_EQ(d.objects.size(), 3u);
+  for (const auto& o : d.objects) EXPECT_EQ(o.layer.sign, +1);
 }
 
 TEST(Isolation, UnevenLightAndBlur) {

@@ -25,10 +25,12 @@ TEST(Vision, JsonHasTheDesignFields) {
   ASSERT_EQ(j["objects"].size(), 2u);
   const auto& a = j["objects"][0];
   for (const char* key : {"index", "label", "match_score", "centroid_px", "centroid_cm", "area_px", "edge_points",
-                          "orientation_deg", "axis_line", "elongation", "elongated", "grip"})
+                          "orientation_deg", "axis_line", "elongation", "elongated", "grip", "touching"})
     EXPECT_TRUE(a.contains(key)) << key;
-  EXPECT_EQ(a.size(), 12u);
-  EXPECT_EQ(a["grip"].size(), 6u);
+  EXPECT_EQ(a.size(), 13u);
+  EXPECT_EQ(a["grip"].size(), 7u);
+  EXPECT_TRUE(a["grip"]["reason"].is_null());
+  EXPECT_FALSE(a["touching"].get<bool>());
   EXPECT_EQ(a["index"], 1);
   EXPECT_TRUE(a["label"].is_null());
   EXPECT_NEAR(a["centroid_px"][0].get<double>(), 200, 0.3);
@@ -65,6 +67,7 @@ TEST(Vision, GripperTooNarrowIsInfeasible) {
   ASSERT_EQ(j["objects"].size(), 2u);
   EXPECT_TRUE(j["objects"][0]["grip"]["feasible"].get<bool>());   // 2.5 cm
   EXPECT_FALSE(j["objects"][1]["grip"]["feasible"].get<bool>());  // 9 cm
+  EXPECT_EQ(j["objects"][1]["grip"]["reason"], "too_wide");
 }
 
 TEST(Vision, EmptyFrameIsAnError) {
@@ -107,6 +110,32 @@ TEST(Vision, VisionTableErrorsNameTheKey) {
   EXPECT_NE(errors.joined().find("vision.objects"), std::string::npos);
   EXPECT_NE(errors.joined().find("vision.px_per_cm"), std::string::npos);
   EXPECT_NE(errors.joined().find("vision.colour: unknown key"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace rbx1::vision
+
+namespace rbx1::vision {
+namespace {
+
+using namespace test;
+
+TEST(Vision, SpeckSizeScalesWithTheFrame) {
+  EXPECT_EQ(min_area_for({640, 480}), 40);
+  EXPECT_EQ(min_area_for({1280, 720}), 120);
+  EXPECT_EQ(min_area_for({160, 120}), 12);
+  std::string error;
+  auto v = Vision::create({}, error);
+  ASSERT_TRUE(v) << error;
+  // A 10x10 px blob with a real object: an object at 640x480, a speck (dust) at 1600x1200.
+  for (auto [size, expect] : {std::pair{cv::Size(640, 480), 2u}, std::pair{cv::Size(1600, 1200), 1u}}) {
+    Scene s;
+    s.size = size;
+    s.noise_sigma = 2;
+    nlohmann::json j;
+    ASSERT_TRUE(v->process(render(s, {rectangle({300, 200}, 10, 10, 0), rectangle({450, 300}, 120, 50, 10)}), j, error));
+    EXPECT_EQ(j["objects"].size(), expect) << size;
+  }
 }
 
 }  // namespace

@@ -20,7 +20,7 @@ class SceneSpec:
     def __init__(self, width=640, height=480, px_per_cm=40.0, min_objects=3, max_objects=6,
                  classes=None, p_touching=0.25, p_near=0.4, p_light=0.5, p_pattern=0.5, p_shadow=0.35,
                  blur=(0.5, 1.1), noise=(1.0, 3.5), light_strength=(0.05, 0.2), min_gap_px=14.0,
-                 border_px=10.0):
+                 border_px=10.0, p_mixed=0.0, light_drift=0.0):
         self.width, self.height, self.px_per_cm = width, height, px_per_cm
         self.min_objects, self.max_objects = min_objects, max_objects
         self.classes = list(classes or shapes.class_names())
@@ -28,6 +28,10 @@ class SceneSpec:
         self.p_pattern, self.p_shadow = p_pattern, p_shadow
         self.blur, self.noise, self.light_strength = blur, noise, light_strength
         self.min_gap_px, self.border_px = min_gap_px, border_px
+        # Variants (off by default, so the default scenes stay as they were): mixed polarity, dark and light
+        # objects on a mid-grey table, in p_mixed of the scenes; light drift, the scene lit with a gain in
+        # 1 +- light_drift and a black-level offset of up to +-10 levels against its empty-table image.
+        self.p_mixed, self.light_drift = p_mixed, light_drift
 
 
 def _placed(name, px_per_cm, angle, centre):
@@ -99,11 +103,15 @@ def render_scene(rng, spec, names, polarity=None, table_kind=None, shadow=None, 
     """Returns (scene BGR uint8, background BGR uint8, truth dict). `placed`: a fixed layout (objs, near,
     touching) instead of a random one."""
     W, H = spec.width, spec.height
+    if polarity is None and spec.p_mixed > 0 and rng.random() < spec.p_mixed:
+        polarity = "mixed"
     polarity = polarity or ("light" if rng.random() < spec.p_light else "dark")
     if table_kind is None:
         table_kind = "uniform" if rng.random() >= spec.p_pattern else str(rng.choice(TABLE_KINDS[1:]))
     if polarity == "dark":
         table_level, obj_range, amp = rng.uniform(165, 215), (30, 90), rng.uniform(6, 14)
+    elif polarity == "mixed":
+        table_level, obj_range, amp = rng.uniform(110, 140), None, rng.uniform(5, 10)
     else:
         table_level, obj_range, amp = rng.uniform(35, 80), (165, 225), rng.uniform(5, 10)
     amp = 0.0 if table_kind == "uniform" else amp
@@ -133,7 +141,10 @@ def render_scene(rng, spec, names, polarity=None, table_kind=None, shadow=None, 
                        "strength": strength}
     levels = []
     for a in alphas:
-        level = rng.uniform(*obj_range)
+        if obj_range is None:  # mixed: each object dark or light at random
+            level = rng.uniform(20, 60) if rng.random() < 0.5 else rng.uniform(190, 235)
+        else:
+            level = rng.uniform(*obj_range)
         levels.append(level)
         col = _colour(rng, level)
         gx, gy = rng.normal(0, 0.02, 2)
@@ -149,7 +160,13 @@ def render_scene(rng, spec, names, polarity=None, table_kind=None, shadow=None, 
         scene[y0:y1, x0:x1] = scene[y0:y1, x0:x1] * (1 - ab) + obj * ab
     blur = float(rng.uniform(*spec.blur))
     noise = float(rng.uniform(*spec.noise))
-    image = render.finish(scene * light[..., None], rng, blur, noise)
+    drift = None
+    lit = scene * light[..., None]
+    if spec.light_drift > 0:
+        drift = {"gain": float(rng.uniform(1 - spec.light_drift, 1 + spec.light_drift)),
+                 "offset": float(rng.uniform(-10, 10))}
+        lit = lit * drift["gain"] + drift["offset"]
+    image = render.finish(lit, rng, blur, noise)
     background = render.finish(table_bgr * light[..., None], rng, blur, noise)
 
     s = spec.px_per_cm
@@ -182,7 +199,7 @@ def render_scene(rng, spec, names, polarity=None, table_kind=None, shadow=None, 
         "generator": "rbx1-scenegen", "version": GENERATOR_VERSION,
         "image": {"width": W, "height": H}, "px_per_cm": s,
         "polarity": polarity, "table": {"kind": table_kind, "level": table_level, "pattern_amplitude": amp},
-        "blur_sigma_px": blur, "noise_sigma": noise, "shadow": shadow_info,
+        "blur_sigma_px": blur, "noise_sigma": noise, "shadow": shadow_info, "light_drift": drift,
         "touching_pairs": [[a, b] for a, b, _ in touching],
         "near_pairs": [{"ids": [a, b], "gap_px": g} for a, b, g in near],
         "objects": objects,

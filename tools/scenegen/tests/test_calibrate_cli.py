@@ -88,6 +88,12 @@ def bad_cases(boards, tmp):
     (tmp / "empty").mkdir()
     (tmp / "junk").mkdir()
     (tmp / "junk" / "a.png").write_bytes(b"not a png at all")
+    # A PNG whose data is damaged after a valid header: libpng prints its own "libpng error" line unless muted.
+    (tmp / "badpng").mkdir()
+    ok, png = cv2.imencode(".png", chessboard.render_views(poses=chessboard.POSES[:1])[0])
+    data = bytearray(png.tobytes())
+    data[60:400] = b"\x00" * 340
+    (tmp / "badpng" / "a.png").write_bytes(bytes(data))
     (tmp / "two").mkdir()
     for i, v in enumerate(chessboard.render_views(poses=chessboard.POSES[:2])):
         cv2.imwrite(str(tmp / "two" / f"v{i}.png"), v)
@@ -103,6 +109,7 @@ def bad_cases(boards, tmp):
         (["--chessboard", tmp / "nope", "--square-mm", 20, "--px-per-cm", 40, "--out", out], "not a folder"),
         (["--chessboard", tmp / "empty", "--square-mm", 20, "--px-per-cm", 40, "--out", out], "no images"),
         (["--chessboard", tmp / "junk", "--square-mm", 20, "--px-per-cm", 40, "--out", out], "not a readable image"),
+        (["--chessboard", tmp / "badpng", "--square-mm", 20, "--px-per-cm", 40, "--out", out], "not a readable image"),
         (["--chessboard", tmp / "two", "--square-mm", 20, "--px-per-cm", 40, "--out", out],
          "found in 2 of 2 images"),
         (["--chessboard", boards, "--board", "9by6", "--square-mm", 20, "--px-per-cm", 40, "--out", out],

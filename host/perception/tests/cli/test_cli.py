@@ -56,6 +56,13 @@ def files(tmp_path_factory):
     f["badlib"] = d / "notjson.json"
     (d / "badcal.json").write_text("[1, 2, 3]")
     f["badcal"] = d / "badcal.json"
+    # The same scene as a JPEG cut in half: libjpeg would fill the missing rows with grey and say nothing.
+    ok, jpg = cv2.imencode(".jpg", cv2.imread(str(f["two"])))
+    (d / "truncated.jpg").write_bytes(jpg.tobytes()[:len(jpg) // 2])
+    f["truncated_jpg"] = d / "truncated.jpg"
+    png = f["two"].read_bytes()
+    (d / "truncated.png").write_bytes(png[:len(png) - 40])
+    f["truncated_png"] = d / "truncated.png"
     f["dir"] = d
     return f
 
@@ -69,8 +76,10 @@ def test_detect_json_contract(files):
     assert [o["index"] for o in doc["objects"]] == [1, 2]
     o = doc["objects"][0]
     assert set(o) == {"index", "label", "match_score", "centroid_px", "centroid_cm", "area_px", "edge_points",
-                      "orientation_deg", "axis_line", "elongation", "elongated", "grip"}
-    assert set(o["grip"]) == {"p1_px", "p2_px", "opening_px", "opening_cm", "angle_deg", "feasible"}
+                      "orientation_deg", "axis_line", "elongation", "elongated", "grip", "touching"}
+    assert set(o["grip"]) == {"p1_px", "p2_px", "opening_px", "opening_cm", "angle_deg", "feasible", "reason"}
+    assert o["touching"] is False
+    assert o["grip"]["feasible"] is True and o["grip"]["reason"] is None
     assert o["label"] is None and o["match_score"] is None
     assert abs(o["centroid_px"][0] - 200) < 0.6 and abs(o["centroid_px"][1] - 150) < 0.6
     assert abs(o["centroid_cm"][0] - 10) < 0.05
@@ -132,6 +141,11 @@ def test_zero_objects_is_success(files):
     ("missing", ["detect", "/nonexistent/x.png"], "cannot be read"),
     ("empty", ["detect", "{empty}"], "empty"),
     ("corrupt", ["detect", "{corrupt}"], "not a readable image"),
+    ("truncated jpeg", ["detect", "{truncated_jpg}"], "truncated"),
+    ("truncated png", ["detect", "{truncated_png}"], "truncated"),
+    ("folder", ["detect", "{dir}"], "is a folder, not an image file"),
+    ("zero scale", ["detect", "{two}", "--px-per-cm", "0"], "must be greater than 0, got 0"),
+    ("negative gripper", ["detect", "{two}", "--gripper-max-cm", "-1"], "must be greater than 0, got -1"),
     ("huge", ["detect", "{huge}"], "too large"),
     ("bg size", ["detect", "{two}", "--background", "{small_bg}"], "background is 100x100 but the frame is 640x480"),
     ("bad lib", ["detect", "{two}", "--library", "{badlib}"], "invalid JSON"),
@@ -150,3 +164,23 @@ def test_bad_input_exits_2_with_one_line(files, case, args, message):
     assert len(lines) == 1, (case, r.stderr)
     assert message in lines[0], (case, lines[0])
     assert r.stdout == ""
+
+
+def test_zero_scale_message_is_short(files):
+    r = run("detect", files["two"], "--px-per-cm", "0")
+    assert r.returncode == 2 and len(r.stderr) < 200, r.stderr
+
+
+def test_ten_bit_png_keeps_its_contrast(files, tmp_path):
+    # A 10-bit sensor image in a 16-bit PNG (0..1023): scaled as 16-bit data it would be nearly black.
+    img8 = cv2.imread(str(files["two"]), cv2.IMREAD_GRAYSCALE).astype(np.uint16)
+    path = tmp_path / "ten_bit.png"
+    cv2.imwrite(str(path), img8 * 4)
+    r = run("detect", path, "--json")
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert len(doc["objects"]) == 2
+    ref = json.loads(run("detect", files["two"], "--json").stdout)
+    for a, b in zip(doc["objects"], ref["objects"]):
+        assert abs(a["centroid_px"][0] - b["centroid_px"][0]) < 0.1
+        assert abs(a["orientation_deg"] - b["orientation_deg"]) < 0.2

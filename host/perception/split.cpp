@@ -1,0 +1,116 @@
+// split.cpp - touching objects cut at their necks: distance-transform maxima ranked by persistence, watershed.
+#include "split.hpp"
+
+#include <algorithm>
+#include <numeric>
+#include <queue>
+
+#include <opencv2/imgproc.hpp>
+
+namespace rbx1::vision {
+namespace {
+
+int find(std::vector<int>& parent, int i) {
+  while (parent[size_t(i)] != i) i = parent[size_t(i)] = parent[size_t(parent[size_t(i)])];
+  return i;
+}
+
+}  // namespace
+
+int split_touching(const cv::Mat& mask, const SplitOptions& opt, cv::Mat& parts) {
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+  if (contours.size() != 1) return 1;
+  std::vector<cv::Point> hull;
+  cv::convexHull(contours[0], hull);
+  double area = cv::contourArea(contours[0]), hull_area = cv::contourArea(hull);
+  if (hull_area <= 0 || area / hull_area > opt.max_solidity || area < 2 * opt.min_area_px) return 1;
+
+  // Distance to the background, on a 1-px padded copy so the ROI's edge counts as outside.
+  cv::Mat padded, dist;
+  cv::copyMakeBorder(mask, padded, 1, 1, 1, 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+  cv::distanceTransform(padded, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  dist = dist(cv::Rect(1, 1, mask.cols, mask.rows)).clone();
+
+  // Flood from the top (0-dimensional persistence): pixels in decreasing distance join their neighbours'
+  // sets; when two sets meet at level s, the one with the lower peak dies with persistence peak - s.
+  const int w = mask.cols, h = mask.rows;
+  std::vector<int> idx;
+  idx.reserve(size_t(cv::countNonZero(mask)));
+  for (int y = 0; y < h; ++y) {
+    const uchar* m = mask.ptr<uchar>(y);
+    for (int x = 0; x < w; ++x)
+      if (m[x]) idx.push_back(y * w + x);
+  }
+  const float* dv = dist.ptr<float>();
+  std::sort(idx.begin(), idx.end(), [&](int a, int b) { return dv[a] > dv[b]; });
+  std::vector<int> parent(size_t(w * h), -1);
+  std::vector<float> peak(size_t(w * h), 0);
+  std::vector<cv::Point> peak_at(size_t(w * h));
+  struct Body { cv::Point at; float peak; float persistence; };
+  std::vector<Body> dead;
+  for (int p : idx) {
+    parent[size_t(p)] = p;
+    peak[size_t(p)] = dv[p];
+    peak_at[size_t(p)] = {p % w, p / w};
+    const int px = p % w, py = p / w;
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        int qx = px + dx, qy = py + dy;
+        if ((dx == 0 && dy == 0) || qx < 0 || qy < 0 || qx >= w || qy >= h) continue;
+        int q = qy * w + qx;
+        if (parent[size_t(q)] < 0) continue;
+        int a = find(parent, p), b = find(parent, q);
+        if (a == b) continue;
+        if (peak[size_t(a)] < peak[size_t(b)]) std::swap(a, b);  // a keeps the higher peak
+        dead.push_back({peak_at[size_t(b)], peak[size_t(b)], peak[size_t(b)] - dv[p]});
+        parent[size_t(b)] = a;
+      }
+  }
+  // The survivor (highest peak) plus every body that stood out enough.
+  std::vector<cv::Point> seeds;
+  if (idx.empty()) return 1;
+  seeds.push_back(peak_at[size_t(find(parent, idx.front()))]);
+  for (const Body& b : dead)
+    if (b.persistence >= opt.min_persistence_px && b.persistence >= opt.min_persistence_rel * b.peak &&
+        b.peak * b.peak * 3.0 >= opt.min_area_px)
+      seeds.push_back(b.at);
+  if (seeds.size() < 2) return 1;
+
+  // Marker watershed on the distance (flooding from the bodies' peaks, highest pixels first): each pixel
+  // joins the body that reaches it from above, so the cuts run along the necks. cv::watershed would rank
+  // pixels by colour difference to their neighbours instead of by height, which does not follow a neck.
+  parts = cv::Mat(mask.size(), CV_32S, cv::Scalar(0));
+  using Item = std::pair<float, int>;
+  std::priority_queue<Item> queue;
+  for (size_t i = 0; i < seeds.size(); ++i) {
+    int p = seeds[i].y * w + seeds[i].x;
+    parts.at<int>(seeds[i]) = int(i) + 1;
+    queue.push({dv[p], p});
+  }
+  int* pv = parts.ptr<int>();
+  const uchar* mv = mask.ptr<uchar>();
+  while (!queue.empty()) {
+    const int p = queue.top().second;
+    queue.pop();
+    const int px = p % w, py = p / w, lab = pv[p];
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        int qx = px + dx, qy = py + dy;
+        if (qx < 0 || qy < 0 || qx >= w || qy >= h) continue;
+        int q = qy * w + qx;
+        if (!mv[q] || pv[q]) continue;
+        pv[q] = lab;
+        queue.push({dv[q], q});
+      }
+  }
+  // Bodies too small after the cut are not objects: give up the split rather than leave a sliver.
+  std::vector<int> count(seeds.size() + 1, 0);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) count[size_t(std::max(0, parts.at<int>(y, x)))]++;
+  for (size_t i = 1; i < count.size(); ++i)
+    if (count[i] < opt.min_area_px) return 1;
+  return int(seeds.size());
+}
+
+}  // namespace rbx1::vision

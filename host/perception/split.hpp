@@ -1,0 +1,21 @@
+// split.hpp - touching objects: one region with two or more bodies joined by a neck is cut apart (distance
+// transform, persistence of its maxima, marker watershed).
+#pragma once
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace rbx1::vision {
+
+struct SplitOptions {
+  double min_persistence_px = 3;   // a body's peak must stand this far above the neck that joins it...
+  double min_persistence_rel = 0.3;  // ...and this fraction of its own peak (the neck is under 70 % of its width)
+  double max_solidity = 0.93;      // regions more convex than this are one object (no neck to cut)
+  int min_area_px = 40;            // each body at least this big
+};
+
+// mask: CV_8U region (255 inside). Returns the number of bodies found (1: not split); when > 1, `parts`
+// (CV_32S, mask's size) holds 1..n for the bodies and 0 outside. Each cut runs along the neck's watershed.
+int split_touching(const cv::Mat& mask, const SplitOptions& opt, cv::Mat& parts);
+
+}  // namespace rbx1::vision

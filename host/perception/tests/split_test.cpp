@@ -1,0 +1,86 @@
+// split_test.cpp - touching objects are cut apart at their necks, each with its own grip clear of the other;
+// single objects with no neck (bars, L shapes, stars, discs) stay whole.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "detector.hpp"
+#include "image_io.hpp"
+#include "shapes.hpp"
+
+namespace rbx1::vision {
+namespace {
+
+using namespace test;
+
+Detection run(const std::vector<Poly>& polys, double finger = 0) {
+  Scene s;
+  s.noise_sigma = 2, s.blur_sigma = 0.7;
+  DetectorOptions o;
+  o.grip.finger_width_px = finger, o.grip.finger_depth_px = finger;
+  Detection d;
+  std::string e;
+  EXPECT_TRUE(detect(to_gray8(render(s, polys)), {}, o, nullptr, d, e)) << e;
+  return d;
+}
+
+const DetectedObject* near(const Detection& d, cv::Point2d c, double tol) {
+  for (const auto& o : d.objects)
+    if (cv::norm(o.geometry.centroid - c) < tol) return &o;
+  return nullptr;
+}
+
+TEST(Split, TwoTouchingDiscsBecomeTwoObjects) {
+  Poly a = ellipse({250, 240}, 45, 45, 0), b = ellipse({338, 240}, 45, 45, 0);  // 2 px overlap
+  Detection d = run({a, b});
+  ASSERT_EQ(d.objects.size(), 2u);
+  for (const auto* c : {near(d, {250, 240}, 3), near(d, {338, 240}, 3)}) {
+    ASSERT_TRUE(c);
+    EXPECT_TRUE(c->touching);
+    EXPECT_NEAR(c->geometry.area_px, M_PI * 45 * 45, 0.05 * M_PI * 45 * 45);
+    EXPECT_TRUE(c->grip.feasible);
+    // Not at the junction: both contacts at least a (default 3 px) finger away from the other disc.
+    cv::Point2d other = c->geometry.centroid.x < 294 ? cv::Point2d(338, 240) : cv::Point2d(250, 240);
+    for (cv::Point2d p : {c->grip.p1, c->grip.p2}) EXPECT_GT(cv::norm(p - other) - 45, 3.0);
+    EXPECT_GT(std::abs(c->grip.angle_deg), 15);
+  }
+}
+
+TEST(Split, BarTouchingADiscEachGrippedClearOfTheOther) {
+  Poly bar = rectangle({220, 240}, 160, 40, 0), disc = ellipse({340, 240}, 40, 40, 0);  // bar's end in the disc
+  Detection d = run({bar, disc}, 10);
+  ASSERT_EQ(d.objects.size(), 2u);
+  const DetectedObject* b = near(d, {215, 240}, 8);
+  ASSERT_TRUE(b);
+  EXPECT_TRUE(b->touching);
+  EXPECT_NEAR(std::abs(b->pose.orientation_deg), 0, 2);
+  EXPECT_NEAR(b->grip.opening_px, 40, 2);
+  EXPECT_TRUE(b->grip.feasible);
+  EXPECT_LT(b->grip.p1.x, 290);  // the fingers stay on the bar, off the disc
+}
+
+TEST(Split, SingleObjectsStayWhole) {
+  Detection d = run({rectangle({150, 120}, 200, 40, 15), l_shape({450, 130}, 120, 35, 20), star({160, 340}, 70, 35, 5, 0),
+                     ellipse({450, 350}, 70, 70, 0), triangle({300, 250}, 60, 0)});
+  EXPECT_EQ(d.objects.size(), 5u);
+  for (const auto& o : d.objects) EXPECT_FALSE(o.touching);
+}
+
+TEST(Split, PersistenceRejectsShallowWaists) {
+  // Two overlapping discs (r = 40) drawn as one region: a waist of 85 % of their width is one object (an
+  // oval with a slight dent), a waist of 40 % is two objects touching.
+  auto waist_pair = [](cv::Point2d c, double ratio) {
+    double half = 40 * std::sqrt(1 - ratio * ratio);  // centre offset for a neck of ratio * 80 px
+    return std::vector<Poly>{ellipse({c.x - half, c.y}, 40, 40, 0), ellipse({c.x + half, c.y}, 40, 40, 0)};
+  };
+  std::vector<Poly> polys = waist_pair({160, 240}, 0.85);
+  for (const Poly& p : waist_pair({460, 240}, 0.4)) polys.push_back(p);
+  Detection d = run(polys);
+  int left = 0, right = 0;
+  for (const auto& o : d.objects) (o.geometry.centroid.x < 310 ? left : right)++;
+  EXPECT_EQ(left, 1);
+  EXPECT_EQ(right, 2);
+}
+
+}  // namespace
+}  // namespace rbx1::vision
