@@ -12,12 +12,16 @@
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+#include <ctime>
 #include <fstream>
 #include <iostream>
 #include <sstream>
+#include <map>
 #include <string>
+#include <vector>
 
 #include "firmware.h"
+#include "rbx1_proto.h"
 #include "hal_sim.hpp"
 #include "link_faults.hpp"
 #include "pty.hpp"
@@ -53,7 +57,31 @@ std::string json_array(const int32_t* v) {
   return s + "]";
 }
 
-// Control FIFO commands: estop 0|1, limit J 0|1, reset, quit. Returns false on quit.
+// `drop TYPE N`: the next N responses to requests of TYPE (an id) are lost on the line after the firmware
+// executed the request (an answer that never arrives: the host retransmits, gets the remembered one, loses it too).
+std::map<uint8_t, int> g_drop;
+
+// Removes the dropped responses from the firmware's output. The firmware writes whole frames, one after another.
+void drop_responses(std::vector<uint8_t>& tx) {
+  if (g_drop.empty()) return;
+  std::vector<uint8_t> kept;
+  size_t i = 0;
+  while (i + 4 <= tx.size() && tx[i] == RBX1_SYNC) {
+    size_t len = size_t(tx[i + 1]) + RBX1_FRAME_OVERHEAD;
+    if (i + len > tx.size()) break;
+    auto it = g_drop.find(uint8_t(tx[i + 3] & 0x7F));
+    if ((tx[i + 3] & 0x80) && it != g_drop.end() && it->second > 0) {
+      if (--it->second == 0) g_drop.erase(it);
+    } else {
+      kept.insert(kept.end(), tx.begin() + long(i), tx.begin() + long(i + len));
+    }
+    i += len;
+  }
+  kept.insert(kept.end(), tx.begin() + long(i), tx.end());
+  tx.swap(kept);
+}
+
+// Control FIFO commands: estop 0|1, limit J 0|1, drop TYPE N, reset, quit. Returns false on quit.
 bool control_command(const std::string& line, std::string& error) {
   std::istringstream in(line);
   std::string cmd;
@@ -76,6 +104,11 @@ bool control_command(const std::string& line, std::string& error) {
     } else {
       b.limits = (uint8_t)(b.limits & ~(1u << (j - 1)));
     }
+  } else if (cmd == "drop") {
+    int type = -1, count = -1;
+    in >> type >> count;
+    if (type < 1 || type > 0x7E || count < 0) error = "usage: drop TYPE N (TYPE = request id 1..126)";
+    else g_drop[uint8_t(type)] = count;
   } else if (cmd == "reset") {
     rbx1::sim::power_on();
     fw_setup();
@@ -89,12 +122,15 @@ bool control_command(const std::string& line, std::string& error) {
 
 int main(int argc, char** argv) {
   CLI::App app{"rbx1-simfw: the RBX1 firmware core on a simulated board, behind a pty"};
-  std::string eeprom_path, control_path, log_path;
+  std::string eeprom_path, control_path, log_path, link_path;
   rbx1::sim::FaultRates rates;
   uint64_t seed = 1;
   app.add_option("--eeprom", eeprom_path, "keep the EEPROM in this file across runs");
   app.add_option("--control", control_path, "control FIFO (created if missing): estop 0|1, limit J 0|1, reset, quit");
   app.add_option("--log-moves", log_path, "write one JSON line per completed queue entry");
+  app.add_option("--link", link_path,
+                 "also make this path a symlink to the pty (replaced atomically; removed at exit): a board that "
+                 "comes back on the same device name after a power cycle");
   app.add_option("--corrupt", rates.corrupt, "per-byte probability of corrupting a byte")->check(CLI::Range(0.0, 1.0));
   app.add_option("--drop", rates.drop, "per-byte probability of dropping a byte")->check(CLI::Range(0.0, 1.0));
   app.add_option("--duplicate", rates.duplicate, "per-byte probability of duplicating a byte")
@@ -143,10 +179,13 @@ int main(int argc, char** argv) {
     }
     rbx1::sim::board().on_entry_done = [log](uint8_t kind, uint16_t n, const int32_t* target, const int32_t* start,
                                              const int32_t* end, uint16_t duration_ms, uint16_t pulse_us) {
+      timespec now{};
+      clock_gettime(CLOCK_MONOTONIC, &now);
       std::fprintf(log, "{\"n\":%u,\"kind\":\"%s\",\"target\":%s,\"start\":%s,\"end\":%s,\"duration_ms\":%u,"
-                   "\"pulse_us\":%u}\n",
+                   "\"pulse_us\":%u,\"mono_ns\":%lld}\n",
                    n, kind ? "gripper" : "move", json_array(kind ? end : target).c_str(), json_array(start).c_str(),
-                   json_array(end).c_str(), duration_ms, pulse_us);
+                   json_array(end).c_str(), duration_ms, pulse_us,
+                   (long long)now.tv_sec * 1000000000LL + now.tv_nsec);
       std::fflush(log);
     };
   }
@@ -156,6 +195,14 @@ int main(int argc, char** argv) {
   if (rbx1::sim::open_pty(pty, error) != 0) {
     std::cerr << "rbx1-simfw: " << error << "\n";
     return 1;
+  }
+  if (!link_path.empty()) {
+    std::string tmp = link_path + ".new";
+    ::unlink(tmp.c_str());
+    if (::symlink(pty.path.c_str(), tmp.c_str()) != 0 || std::rename(tmp.c_str(), link_path.c_str()) != 0) {
+      std::cerr << "rbx1-simfw: " << link_path << ": " << std::strerror(errno) << "\n";
+      return 1;
+    }
   }
   std::printf("%s\n", pty.path.c_str());
   std::fflush(stdout);
@@ -181,6 +228,7 @@ int main(int argc, char** argv) {
 
     fw_loop();
 
+    drop_responses(board.tx);
     for (uint8_t b : board.tx) from_fw.push(b, now_ms);
     board.tx.clear();
     from_fw.deliver(now_ms, [&](uint8_t b) { out_pending.push_back((char)b); });
@@ -221,6 +269,7 @@ int main(int argc, char** argv) {
   if (log) std::fclose(log);
   if (control_fd >= 0) close(control_fd);
   if (control_keep >= 0) close(control_keep);
+  if (!link_path.empty()) ::unlink(link_path.c_str());
   rbx1::sim::close_pty(pty);
   return 0;
 }

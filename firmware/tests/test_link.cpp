@@ -32,7 +32,7 @@ TEST_F(Fw, HelloReportsVersionsSizesAndCapabilities) {
   r = request(RBX1_MSG_HELLO, p, 1);                // seq 2
   ASSERT_EQ(rbx1_hello_resp_unpack(&h, r.payload.data(), (uint8_t)r.payload.size()), RBX1_OK);
   EXPECT_EQ(h.last_seq, 1);
-  p[0] = 2;
+  p[0] = RBX1_PROTO_VERSION + 1;
   r = request(RBX1_MSG_HELLO, p, 1);
   ASSERT_EQ(rbx1_hello_resp_unpack(&h, r.payload.data(), (uint8_t)r.payload.size()), RBX1_OK);
   EXPECT_EQ(h.status, RBX1_BAD_VERSION);
@@ -132,6 +132,48 @@ TEST_F(Fw, PartialFrameTimesOut) {
   Reply r = request(RBX1_MSG_HEARTBEAT, nullptr, 0);  // a fresh frame is understood at once
   ASSERT_TRUE(r.got);
   EXPECT_EQ(r.type, RBX1_RESPONSE(RBX1_MSG_HEARTBEAT));
+}
+
+TEST_F(Fw, FrameSwallowedByAPartialOneIsFoundAfterTheTimeout) {
+  ready();
+  std::vector<uint8_t> p = move_payload({100, 0, 0, 0, 0, 0});
+  std::vector<uint8_t> cut = encode(3, RBX1_MSG_MOVE, p.data(), (uint8_t)p.size());
+  std::vector<uint8_t> st = encode(4, RBX1_MSG_STATUS, nullptr, 0);
+  frames_.clear();
+  send_bytes(cut.data(), 10);  // a MOVE cut short, then a whole STATUS read as its continuation
+  send_bytes(st.data(), st.size());
+  run_ms(20);
+  EXPECT_TRUE(frames_.empty());
+  run_ms(60);  // the inter-byte timeout: the MOVE's SYNC is dropped and the STATUS found by the rescan
+  ASSERT_EQ(frames_.size(), 1u);
+  EXPECT_EQ(frames_[0].type, RBX1_RESPONSE(RBX1_MSG_STATUS));
+  EXPECT_EQ(frames_[0].seq, 4);
+  EXPECT_EQ(status().moves_accepted, 0);  // the cut MOVE never ran
+}
+
+TEST_F(Fw, EstopOfAnyPayloadLengthStopsTheArm) {
+  for (uint8_t len : {1, 5, 58}) {
+    SCOPED_TRACE("ESTOP with " + std::to_string(len) + " payload bytes");
+    ready();
+    ASSERT_EQ(simple(RBX1_MSG_CLEAR_FAULT), RBX1_OK);
+    ASSERT_EQ(move({60000, 0, 0, 0, 0, 0}), RBX1_OK);
+    run_ms(100);
+    std::vector<uint8_t> junk(len, 0x42);
+    Reply r = request(RBX1_MSG_ESTOP, junk.data(), len);
+    ASSERT_TRUE(r.got);
+    EXPECT_EQ(r.type, RBX1_RESPONSE(RBX1_MSG_ESTOP));
+    ASSERT_EQ(r.payload.size(), (size_t)RBX1_ESTOP_RESP_LEN);
+    EXPECT_EQ(r.payload[0], RBX1_OK);
+    uint64_t n = sim::board().pulses[0];
+    run_ms(50);
+    EXPECT_EQ(sim::board().pulses[0], n) << "pulses after the e-stop";
+    rbx1_status_resp s = status();
+    EXPECT_EQ(s.state, RBX1_STATE_FAULT);
+    EXPECT_TRUE(s.faults & RBX1_FAULT_ESTOP_COMMAND);
+    ASSERT_EQ(simple(RBX1_MSG_CLEAR_FAULT), RBX1_OK);
+    ASSERT_EQ(set_position({0, 0, 0, 0, 0, 0}), RBX1_OK);
+    sim::board().net[0] = 0;
+  }
 }
 
 }  // namespace

@@ -46,6 +46,22 @@ TEST_F(Fw, SoftLimitRejectsTheWholeMove) {
   EXPECT_EQ(status().position[2], 500);
 }
 
+TEST_F(Fw, SetPositionOutsideTheSoftLimitsIsRefused) {
+  ASSERT_EQ(enable(1), RBX1_OK);
+  ASSERT_EQ(config_set(3, RBX1_KEY_SOFT_MAX, 500), RBX1_OK);
+  EXPECT_EQ(set_position({0, 0, 0, 501, 0, 0}), RBX1_SOFT_LIMIT);
+  EXPECT_EQ(set_position({-100001, 0, 0, 0, 0, 0}), RBX1_SOFT_LIMIT);  // default limits +-100000
+  rbx1_status_resp s = status();
+  EXPECT_EQ(s.homed, 0) << "a refused declaration changes nothing";
+  for (int i = 0; i < 6; i++) EXPECT_EQ(s.position[i], 0);
+  EXPECT_EQ(move({0, 0, 0, 0, 0, 0}), RBX1_NOT_HOMED);
+  EXPECT_EQ(set_position({-100000, 0, 0, 500, 0, 0}), RBX1_OK);  // the limits themselves are inside
+  s = status();
+  EXPECT_EQ(s.homed, 0x3F);
+  EXPECT_EQ(s.position[0], -100000);
+  EXPECT_EQ(s.position[3], 500);
+}
+
 TEST_F(Fw, EstopInputStopsPulsesAtOnceAndLatches) {
   ready();
   uint64_t last_pulse = 0;

@@ -10,6 +10,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <ctime>
 #include <string>
 #include <vector>
 
@@ -169,9 +170,17 @@ TEST(SimfwPty, MoveLogControlResetEepromAndQuit) {
       usleep(20000);
       if (cl.request(RBX1_MSG_CONFIG_SET, p, rbx1_config_set_req_pack(&cs, p)).at(0) == RBX1_OK) break;
     }
-    EXPECT_EQ(read_file(log),
-              "{\"n\":1,\"kind\":\"move\",\"target\":[200,-100,50,0,0,7],\"start\":[0,0,0,0,0,0],"
-              "\"end\":[200,-100,50,0,0,7],\"duration_ms\":500,\"pulse_us\":0}\n");
+    std::string line = read_file(log);
+    const std::string fixed = "{\"n\":1,\"kind\":\"move\",\"target\":[200,-100,50,0,0,7],\"start\":[0,0,0,0,0,0],"
+                              "\"end\":[200,-100,50,0,0,7],\"duration_ms\":500,\"pulse_us\":0,\"mono_ns\":";
+    ASSERT_EQ(line.substr(0, fixed.size()), fixed) << line;
+    // mono_ns: CLOCK_MONOTONIC when the entry completed, so between the MOVE and now.
+    timespec now{};
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    long long t = std::stoll(line.substr(fixed.size()));
+    EXPECT_LE(t, (long long)now.tv_sec * 1000000000LL + now.tv_nsec) << line;
+    EXPECT_GT(t, (long long)now.tv_sec * 1000000000LL + now.tv_nsec - 3000000000LL) << line;
+    EXPECT_EQ(line.substr(line.size() - 2), "}\n") << line;
     FILE* ctl = std::fopen(fifo.c_str(), "w");
     ASSERT_NE(ctl, nullptr);
     std::fputs("reset\n", ctl);

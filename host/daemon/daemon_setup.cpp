@@ -41,12 +41,33 @@ bool load_config(const std::string& file, const Overrides& overrides, Config& ou
     errors.add("daemon.start_place", "no place \"" + out.daemon.start_place + "\" in [arm] places (known: " + known + ")");
   }
   if (out.camera.device.empty()) errors.add("camera.device", "must be set (a /dev/videoN, an image or a folder)");
+  // px_per_cm = 0 leaves the daemon without table coordinates: every pick would fail "uncalibrated".
+  if (auto vis = top.section("vision"); vis.has("px_per_cm") && !(out.vision.px_per_cm > 0))
+    errors.add("vision.px_per_cm", "must be above 0 (or leave it out and set vision.calibration)");
 
   fs::path dir = fs::absolute(fs::path(file)).parent_path();
   if (out.camera.device.rfind("/dev/", 0) != 0) resolve(out.camera.device, dir);
   resolve(out.vision.background_path, dir);
   resolve(out.vision.library_path, dir);
   resolve(out.vision.calibration_path, dir);
+  return errors.ok();
+}
+
+bool check_files(const Config& config, config::Errors& errors) {
+  std::string error;
+  const auto& v = config.vision;
+  for (const auto& [key, path] : {std::pair<const char*, const std::string&>{"vision.library", v.library_path},
+                                  {"vision.background", v.background_path},
+                                  {"vision.calibration", v.calibration_path}})
+    if (!path.empty() && !fs::exists(path)) errors.add(key, path + ": no such file");
+  if (errors.ok() && !vision::Vision::create(v, error)) errors.add("vision", error);
+  const std::string& dev = config.camera.device;
+  if (dev.rfind("/dev/", 0) == 0) {
+    if (!fs::exists(dev)) errors.add("camera.device", dev + ": no such device");
+  } else if (!dev.empty()) {
+    if (!fs::exists(dev)) errors.add("camera.device", dev + ": no such file or folder");
+    else if (!camera::open_source(config.camera, error)) errors.add("camera.device", error);
+  }
   return errors.ok();
 }
 

@@ -32,4 +32,9 @@ struct Overrides {
 // file's folder. Every problem goes to errors, naming its key. Returns errors.ok().
 bool load_config(const std::string& file, const Overrides& overrides, Config& out, config::Errors& errors);
 
+// What Machine::start() would meet (rbx1d --check-config): the vision files (library, background,
+// calibration) load, an image or folder camera exists and reads, a /dev camera exists. Problems go to errors,
+// naming the key. Returns errors.ok().
+bool check_files(const Config& config, config::Errors& errors);
+
 }  // namespace rbx1::daemon

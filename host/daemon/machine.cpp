@@ -250,6 +250,15 @@ void Machine::note_status(const rbx1_status_resp& s) {
 
 // ---- the worker ----------------------------------------------------------------------------------------------
 
+void Machine::hold(const std::string& why) {
+  // Under mutex_. The daemon no longer knows where the arm is: nothing moves until the operator says so.
+  prepared_ = false;
+  hold_ = true;
+  link_error_ = why + ": put the arm at its home pose, then rbx1 clear-fault";
+  set_led(false);
+  spdlog::error("{}", link_error_);
+}
+
 bool Machine::prepare(std::string& error) {
   if (!link_.connected()) {
     int r = link_.name().empty() ? link_.open(config_.link, error) : link_.reconnect(error);
@@ -264,12 +273,35 @@ bool Machine::prepare(std::string& error) {
     error = link_.name() + ": STATUS failed (" + std::to_string(r) + ")";
     return false;
   }
+  {
+    // A firmware this daemon had prepared and that since lost its positions or restarted its counters was
+    // reset (power, watchdog, another board on the port): declaring the home pose again is the operator's call.
+    std::lock_guard lock(mutex_);
+    bool back = last_status_ && counters_went_back(*last_status_, st);
+    last_status_ = st;
+    if (session_ && (st.homed != 0x3F || back)) {
+      hold(back ? "the firmware's counters went back (reset?)" : "the firmware lost its joint positions (reset?)");
+      error = link_error_;
+      return false;
+    }
+  }
+  // Queue entries this daemon did not send (a killed predecessor's) are stopped before anything else.
+  int foreign = 0;
+  if (stop_foreign(link_, st, foreign, error) < 0) return false;
   note_status(st);
   // A lost heartbeat is the previous host session's doing; an e-stop is the operator's to clear.
   if ((st.faults & RBX1_FAULTS_LATCHING) == RBX1_FAULT_HEARTBEAT_LOST) {
     rbx1_clear_fault_resp cf{};
-    link_.clear_fault(cf);
-    link_.status(st);
+    if (int r = link_.clear_fault(cf); r < 0 || cf.status != RBX1_OK) {
+      error = link_.name() + ": could not clear a stale HEARTBEAT_LOST (" +
+              (r < 0 ? std::to_string(r) : std::string(rbx1_status_name(cf.status))) + ")";
+      return false;
+    }
+    if (int r = link_.status(st); r < 0) {
+      error = link_.name() + ": STATUS failed (" + std::to_string(r) + ")";
+      return false;
+    }
+    note_status(st);
     spdlog::info("link: cleared a stale HEARTBEAT_LOST");
   }
   if (st.state == RBX1_STATE_FAULT) {
@@ -298,6 +330,7 @@ bool Machine::prepare(std::string& error) {
           error = "link lost while homing";
           return false;
         }
+        note_status(st);
         if (st.state == RBX1_STATE_FAULT) {
           error = "homing failed " + fault_names(st.faults).dump();
           return false;
@@ -319,8 +352,13 @@ bool Machine::prepare(std::string& error) {
       spdlog::info("link: positions declared at the home pose");
     }
   }
-  link_.status(st);
+  if (int r = link_.status(st); r < 0) {
+    error = link_.name() + ": STATUS failed (" + std::to_string(r) + ")";
+    return false;
+  }
   note_status(st);
+  std::lock_guard lock(mutex_);
+  session_ = true;
   return true;
 }
 
@@ -367,23 +405,16 @@ void Machine::worker() {
       lock.unlock();
       rbx1_status_resp st{};
       int r = link_.status(st);
-      if (r == 0) note_status(st);
-      else spdlog::warn("link: idle STATUS failed ({})", r);
+      if (r < 0) spdlog::warn("link: idle STATUS failed ({})", r);
       if (r == 0) {
-        std::lock_guard relock(mutex_);
-        set_led(prepared_ && st.state != RBX1_STATE_FAULT);  // lit exactly while status says ready
-      }
-      if (r == 0 && st.homed != 0x3F) {
         // A reset board (power, watchdog, USB re-plug) no longer knows where the arm is; neither does the
         // daemon. Declaring the home pose again is the operator's call, not ours.
         std::lock_guard relock(mutex_);
-        if (prepared_) {
-          prepared_ = false;
-          hold_ = true;
-          link_error_ = "the firmware lost its joint positions (reset?): put the arm at its home pose, then rbx1 clear-fault";
-          set_led(false);
-          spdlog::error("{}", link_error_);
-        }
+        bool back = last_status_ && counters_went_back(*last_status_, st);
+        last_status_ = st;
+        if (session_ && !hold_ && (st.homed != 0x3F || back))
+          hold(back ? "the firmware's counters went back (reset?)" : "the firmware lost its joint positions (reset?)");
+        set_led(prepared_ && st.state != RBX1_STATE_FAULT);  // lit exactly while status says ready
       }
     }
   }
@@ -454,6 +485,10 @@ MotionHooks Machine::hooks(Reply& reply) {
 bool Machine::run_steps(Reply& reply, const std::vector<MotionStep>& steps, MotionResult& result) {
   Motion motion(link_, {config_.daemon.status_poll_ms, config_.daemon.move_timeout_s, config_.daemon.reconnect_timeout_s});
   result = motion.run(steps, hooks(reply));
+  if (!result.ok && result.code == "firmware_reset") {
+    std::lock_guard lock(mutex_);
+    hold("the firmware was reset or replaced during the job (" + result.message + ")");
+  }
   if (!result.ok && result.code != "estop" && link_.connected()) {
     // A failed job (timeout, shutdown, a refused step) leaves nothing running behind it: STOP flushes what it
     // queued. The e-stop already halted everything.
@@ -470,6 +505,11 @@ bool Machine::run_steps(Reply& reply, const std::vector<MotionStep>& steps, Moti
 }
 
 bool Machine::move_to(Reply& reply, const std::string& name, const arm::Joints& pose) {
+  MotionResult result;
+  return move_to(reply, name, pose, result);
+}
+
+bool Machine::move_to(Reply& reply, const std::string& name, const arm::Joints& pose, MotionResult& result) {
   rbx1_status_resp st{};
   {
     std::lock_guard lock(mutex_);
@@ -481,7 +521,6 @@ bool Machine::move_to(Reply& reply, const std::string& name, const arm::Joints& 
     reply.error("plan_failed", error);
     return false;
   }
-  MotionResult result;
   return run_steps(reply, steps, result);
 }
 
@@ -536,10 +575,9 @@ void Machine::job_scan(Reply& reply) {
 
 void Machine::job_home(Reply& reply) {
   if (!ready(reply)) return;
-  if (!move_to(reply, "home", config_.arm.home)) return;
-  rbx1_status_resp st{};
-  link_.status(st);
-  note_status(st);
+  MotionResult result;  // its last STATUS is the one that showed the move complete
+  if (!move_to(reply, "home", config_.arm.home, result)) return;
+  const rbx1_status_resp& st = result.last;
   reply.result({{"home", true}, {"position", std::vector<int32_t>(st.position, st.position + RBX1_JOINTS)}});
 }
 
@@ -567,6 +605,7 @@ void Machine::job_clear_fault(Reply& reply) {
   {
     std::lock_guard lock(mutex_);
     hold_ = false;  // the operator's word that the arm stands where home_on_start will declare it
+    session_ = false;
   }
   std::string error;
   bool ok = prepare(error);
@@ -581,8 +620,10 @@ void Machine::job_clear_fault(Reply& reply) {
     return;
   }
   rbx1_status_resp st{};
-  link_.status(st);
-  note_status(st);
+  {
+    std::lock_guard lock(mutex_);
+    st = *last_status_;  // prepare() succeeded: its last STATUS was read and noted
+  }
   reply.result({{"cleared", true}, {"firmware", status_json(st)}});
 }
 

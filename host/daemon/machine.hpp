@@ -57,6 +57,8 @@ class Machine {
   void job_clear_fault(Reply& reply);
   // Moves to a joint pose (degrees) as one step; false after reply->error.
   bool move_to(Reply& reply, const std::string& name, const arm::Joints& pose);
+  bool move_to(Reply& reply, const std::string& name, const arm::Joints& pose, MotionResult& result);
+  void hold(const std::string& why);  // mutex_ held: not ready until clear_fault
   bool run_steps(Reply& reply, const std::vector<MotionStep>& steps, MotionResult& result);
   // Capture + detect at the scan pose; false after reply.error.
   bool capture_and_detect(Reply& reply, nlohmann::json& detections, std::string& report);
@@ -86,6 +88,7 @@ class Machine {
   bool stopping_ = false;
   bool prepared_ = false;           // link up, drivers enabled, positions homed or declared
   bool hold_ = false;               // the firmware lost its positions: wait for the operator (clear_fault)
+  bool session_ = false;            // this daemon prepared the firmware: a later reset of it is a hold, not a fresh start
   std::string link_error_;          // why the link is not ready
   std::optional<rbx1_status_resp> last_status_;
   std::string last_estop_;          // source of the last e-stop

@@ -24,7 +24,13 @@ int main(int argc, char** argv) {
   bool check = false;
   rbx1::daemon::Overrides overrides;
   app.add_option("--config", config_file, "the TOML config file (data/rbx1.toml is the bundled default)")->required();
-  app.add_flag("--check-config", check, "validate the config, print OK or the errors, exit 0 or 2");
+  bool check_syntax = false;
+  app.add_flag("--check-config", check,
+               "validate the config and open its files and devices as the daemon would; print OK or the errors, "
+               "exit 0 or 2");
+  app.add_flag("--check-syntax", check_syntax,
+               "validate the config's keys and values only, opening nothing (a config for another machine: "
+               "packaging); print OK or the errors, exit 0 or 2");
   app.add_option("--port", overrides.port, "serial port, overriding [link] port (also $RBX1_PORT)");
   app.add_option("--socket", overrides.socket, "control socket path, overriding [daemon] socket");
   app.add_option("--annotate", overrides.annotate, "write each scan's annotated image here ([daemon] annotate)");
@@ -42,7 +48,16 @@ int main(int argc, char** argv) {
     for (const auto& m : errors.messages()) std::fprintf(stderr, "rbx1d: %s: %s\n", config_file.c_str(), m.c_str());
     return 2;
   }
+  if (check_syntax && !check) {
+    std::printf("OK\n");
+    return 0;
+  }
   if (check) {
+    // Also what start() would open: a file that is missing or unreadable is a config error, found now.
+    if (!rbx1::daemon::check_files(config, errors)) {
+      for (const auto& m : errors.messages()) std::fprintf(stderr, "rbx1d: %s: %s\n", config_file.c_str(), m.c_str());
+      return 2;
+    }
     std::printf("OK\n");
     return 0;
   }

@@ -38,6 +38,8 @@ nlohmann::json status_json(const rbx1_status_resp& s) {
           {"enabled", s.enabled != 0},
           {"queue_free", s.queue_free},
           {"moves_done", s.moves_done},
+          {"moves_accepted", s.moves_accepted},
+          {"moves_flushed", s.moves_flushed},
           {"gripper_us", s.gripper_us},
           {"position", std::vector<int32_t>(s.position, s.position + RBX1_JOINTS)}};
 }
@@ -81,6 +83,41 @@ int Motion::recover(const MotionHooks& hooks, std::string& error) {
   return 0;
 }
 
+int stop_foreign(link::Link& link, rbx1_status_resp& st, int& stopped, std::string& error) {
+  stopped = 0;
+  const uint8_t size = link.firmware().queue_size;
+  bool busy = st.state == RBX1_STATE_MOVING || st.state == RBX1_STATE_HOMING || st.state == RBX1_STATE_STOPPING ||
+              (st.state != RBX1_STATE_FAULT && size && st.queue_free != size);
+  if (!busy) return 0;
+  stopped = size >= st.queue_free ? size - st.queue_free : 0;
+  spdlog::warn("motion: the firmware is {} with {} queue entries this host did not send; stopping them",
+               state_name(st.state), stopped);
+  rbx1_stop_resp sr{};
+  if (int r = link.stop(sr); r < 0) {
+    error = link.name() + ": STOP failed (" + std::to_string(r) + ")";
+    return r;
+  }
+  auto deadline = Clock::now() + std::chrono::seconds(10);
+  for (;;) {
+    if (int r = link.status(st); r < 0) {
+      error = link.name() + ": STATUS failed while stopping (" + std::to_string(r) + ")";
+      return r;
+    }
+    if (st.state == RBX1_STATE_IDLE || st.state == RBX1_STATE_FAULT) return 0;
+    if (Clock::now() > deadline) {
+      error = "the firmware did not come to rest after STOP (state " + std::string(state_name(st.state)) + ")";
+      return -ETIMEDOUT;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+}
+
+bool counters_went_back(const rbx1_status_resp& before, const rbx1_status_resp& now) {
+  return int16_t(uint16_t(now.moves_accepted - before.moves_accepted)) < 0 ||
+         int16_t(uint16_t(now.moves_done - before.moves_done)) < 0 ||
+         int16_t(uint16_t(now.moves_flushed - before.moves_flushed)) < 0;
+}
+
 MotionResult Motion::run(const std::vector<MotionStep>& steps, const MotionHooks& hooks) {
   MotionResult res;
   auto fail = [&](std::string code, std::string message) {
@@ -91,13 +128,23 @@ MotionResult Motion::run(const std::vector<MotionStep>& steps, const MotionHooks
   };
   rbx1_status_resp st{};
   std::string err;
+  bool have_last = false;
   // Read the firmware's state; on a link failure wait for it to come back. 0, or -1 after fail() was filled.
+  // A firmware whose counters went back or that lost its positions is not the one this run talked to.
   auto read_status = [&]() -> int {
     for (;;) {
       int r = link_.status(st);
       if (r == 0) {
+        bool back = have_last && counters_went_back(res.last, st);
         res.last = st;
+        have_last = true;
         if (hooks.on_status) hooks.on_status(st);
+        if (back || st.homed != 0x3F) {
+          fail("firmware_reset", std::string("the firmware ") +
+                                     (back ? "counters went back" : "lost its joint positions") +
+                                     " (reset?); refusing to guess the arm's state");
+          return -1;
+        }
         return 0;
       }
       if (!link_error(r)) {
@@ -115,20 +162,66 @@ MotionResult Motion::run(const std::vector<MotionStep>& steps, const MotionHooks
   if (read_status() < 0) return res;
   if (st.state == RBX1_STATE_FAULT)
     return fail("fault", "firmware is in FAULT (" + fault_names(st.faults).dump() + "); clear_fault first");
-  const uint16_t base = st.moves_done;  // entries complete before this run
+  // Entries this host did not send (a previous daemon's) never run under this job: stop and flush them.
+  int foreign = 0;
+  if (stop_foreign(link_, st, foreign, err) < 0) return fail("link_error", err);
+  if (foreign || st.state != RBX1_STATE_IDLE) {
+    hooks.emit("stopped_foreign", {{"entries", foreign}, {"firmware", status_json(st)}});
+    if (st.state != RBX1_STATE_IDLE) return fail("fault", "firmware not idle after stopping foreign entries (" +
+                                                              std::string(state_name(st.state)) + ")");
+    res.last = st;
+  }
+  // The journal, from the firmware's own counters: of the entries accepted since this run began (A), D completed
+  // and F were flushed; the rest (A - D - F) wait in its queue. Steps complete in order, so steps[0..D) are done
+  // and steps[D..D+queued) are queued; a flush (STOP, heartbeat loss) sends the rest again.
+  const rbx1_status_resp base = st;
+  auto since = [](uint16_t now, uint16_t then) { return size_t(uint16_t(now - then)); };
   const size_t n = steps.size();
-  size_t sent = 0;  // entries the firmware accepted (journal: steps[0..sent) are in its queue or done)
-  size_t done = 0;  // entries the firmware completed (moves_done - base)
-  size_t announced = 0;  // entries whose start was reported
+  size_t accepted = 0;   // entries this run had accepted (A as the journal knows it)
+  size_t sent = 0;       // next step to send
+  size_t done = 0;       // steps completed
+  size_t announced = 0;  // steps whose start was reported
+  size_t flushed = 0;     // steps flushed and not yet handled (sent again after a heartbeat loss)
   uint8_t queue_free = st.queue_free;
   Clock::time_point head_since = Clock::now();
+  // Reconciles the journal with a fresh STATUS. 0, or -1 after fail().
+  auto reconcile = [&]() -> int {
+    size_t a = since(st.moves_accepted, base.moves_accepted), d = since(st.moves_done, base.moves_done),
+           f = since(st.moves_flushed, base.moves_flushed);
+    if (a != accepted || d + f > a || d > n) {
+      fail("firmware_reset", "the firmware's counters (accepted " + std::to_string(a) + ", done " + std::to_string(d) +
+                                 ", flushed " + std::to_string(f) + " since the job began) disagree with the " +
+                                 std::to_string(accepted) + " entries this job sent; refusing to guess the arm's state");
+      return -1;
+    }
+    while (done < d) {
+      nlohmann::json j = step_json(steps[done], done);
+      j["moves_done"] = st.moves_done;
+      j["position"] = std::vector<int32_t>(st.position, st.position + RBX1_JOINTS);
+      hooks.emit("step_done", j);
+      ++done;
+      if (announced < sent && announced == done) {
+        hooks.emit("step", step_json(steps[announced], announced));
+        ++announced;
+      }
+      head_since = Clock::now();
+    }
+    size_t queued = a - d - f;
+    if (done + queued < sent) {  // flushed: those steps never ran; the fault checks below decide what follows
+      flushed += sent - done - queued;
+      sent = done + queued;
+      if (announced > sent) announced = sent;
+    }
+    queue_free = st.queue_free;
+    return 0;
+  };
 
   while (done < n) {
     if (hooks.aborted()) return fail(hooks.abort_reason(), "job aborted at step " + std::to_string(done + 1) + " (" + steps[done].name + ")");
-    // Send ahead while the queue has room.
-    while (sent < n && queue_free > 0) {
+    // Send ahead while the queue has room (never while the firmware stops, homes or holds a fault).
+    bool can_send = st.state == RBX1_STATE_IDLE || st.state == RBX1_STATE_MOVING;
+    while (can_send && sent < n && queue_free > 0) {
       const MotionStep& s = steps[sent];
-      uint8_t seq = link_.next_seq();  // the SEQ this request will carry: tells after a reconnect if it ran
       uint8_t status = 0;
       int r;
       if (s.gripper) {
@@ -150,20 +243,22 @@ MotionResult Motion::run(const std::vector<MotionStep>& steps, const MotionHooks
         if (!link_error(r)) return fail("link_error", link_.name() + ": request failed (" + std::to_string(r) + ")");
         if (recover(hooks, err) < 0) return fail(hooks.aborted() ? hooks.abort_reason() : "link_down", err);
         res.recovered++;
-        // At-most-once: the firmware's last executed SEQ says whether the lost request ran.
-        bool ran = link_.firmware().last_seq == seq;
+        // At-most-once: the firmware's accepted counter says whether the lost request was queued.
+        if (read_status() < 0) return res;
+        bool ran = since(st.moves_accepted, base.moves_accepted) == accepted + 1;
         spdlog::info("motion: step {} ({}) {} before the link went down", sent + 1, s.name,
                      ran ? "was accepted" : "was not received");
         hooks.emit("journal", {{"step", sent + 1}, {"name", s.name}, {"accepted_before_outage", ran}});
         if (ran) {
+          hooks.emit("sent", step_json(s, sent));
           if (hooks.on_sent) hooks.on_sent(sent);
+          ++accepted;
           ++sent;
         }
-        if (read_status() < 0) return res;
-        queue_free = st.queue_free;
+        if (reconcile() < 0) return res;
         break;  // re-evaluate faults (heartbeat loss) below before sending more
       }
-      if (status == RBX1_QUEUE_FULL) {
+      if (status == RBX1_QUEUE_FULL || status == RBX1_BUSY) {  // room or state comes back: poll and retry
         queue_free = 0;
         break;
       }
@@ -178,6 +273,7 @@ MotionResult Motion::run(const std::vector<MotionStep>& steps, const MotionHooks
                                     rbx1_status_name(status));
       hooks.emit("sent", step_json(s, sent));
       if (hooks.on_sent) hooks.on_sent(sent);
+      ++accepted;
       ++sent;
     }
     if (announced < sent && announced == done) {
@@ -187,51 +283,28 @@ MotionResult Motion::run(const std::vector<MotionStep>& steps, const MotionHooks
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(options_.poll_ms));
     if (read_status() < 0) return res;
-    size_t now_done = uint16_t(st.moves_done - base);
-    if (st.homed != 0x3F)
-      return fail("firmware_reset", "the firmware lost its joint positions during step " + std::to_string(done + 1) +
-                                        " (reset?); refusing to guess the arm's state");
-    if (now_done > sent) {  // more completions than we sent: the firmware is not the one we started with
-      return fail("firmware_reset", "moves_done jumped from " + std::to_string(base) + " to " +
-                                        std::to_string(st.moves_done) + "; refusing to guess the arm's state");
-    }
-    while (done < now_done) {
-      nlohmann::json j = step_json(steps[done], done);
-      j["moves_done"] = st.moves_done;
-      j["position"] = std::vector<int32_t>(st.position, st.position + RBX1_JOINTS);
-      hooks.emit("step_done", j);
-      ++done;
-      if (announced < sent && announced == done) {
-        hooks.emit("step", step_json(steps[announced], announced));
-        ++announced;
-      }
-      head_since = Clock::now();
-    }
-    queue_free = st.queue_free;
+    if (reconcile() < 0) return res;
     if (st.state == RBX1_STATE_FAULT || (st.faults & RBX1_FAULTS_LATCHING)) {
       if (st.faults & (RBX1_FAULT_ESTOP_INPUT | RBX1_FAULT_ESTOP_COMMAND))
         return fail("estop", "e-stop: motion stopped at step " + std::to_string(done + 1) + " (" +
                                  (done < n ? steps[done].name : "end") + ")");
       if ((st.faults & RBX1_FAULTS_LATCHING) == RBX1_FAULT_HEARTBEAT_LOST && st.state != RBX1_STATE_STOPPING) {
-        // The outage outlived the firmware's heartbeat: it stopped and flushed its queue. Entries not
-        // completed were not executed; their targets are absolute, so sending them again resumes the job.
-        hooks.emit("heartbeat_lost", {{"completed", done}, {"flushed", sent - done}});
-        rbx1_clear_fault_resp cf{};
-        rbx1_enable_resp en{};
-        if (link_.clear_fault(cf) < 0 || cf.status != RBX1_OK)
-          return fail("fault", "could not clear HEARTBEAT_LOST: " + std::string(rbx1_status_name(cf.status)));
-        if (read_status() < 0) return res;
-        if (!st.enabled && (link_.enable(true, en) < 0 || en.status != RBX1_OK))
-          return fail("fault", "could not re-enable the drivers after HEARTBEAT_LOST");
-        res.resent += int(sent - done);
-        sent = done;
-        announced = done;
-        queue_free = st.queue_free;
+        // The outage outlived the firmware's heartbeat: it stopped and flushed its queue (reconcile() moved
+        // `sent` back to the first step that did not complete). Clear the fault and carry on.
+        hooks.emit("heartbeat_lost", {{"completed", done}, {"flushed", flushed}});
+        if (clear_heartbeat_lost(hooks, st, res.recovered, err) < 0) return fail("fault", err);
+        res.last = st;
+        if (reconcile() < 0) return res;
+        res.resent += int(flushed);  // their targets are absolute: sending them again resumes the job
+        flushed = 0;
         continue;
       }
       if (st.state == RBX1_STATE_FAULT)
         return fail("fault", "firmware fault " + fault_names(st.faults).dump() + " at step " + std::to_string(done + 1));
     }
+    if (flushed && st.state != RBX1_STATE_STOPPING)  // flushed with no fault: a STOP this job did not send
+      return fail("stopped", "the firmware flushed " + std::to_string(flushed) + " entries of this job at step " +
+                                 std::to_string(done + 1) + " without a fault (a STOP from elsewhere?)");
     if (done < sent) {
       double allowed = planned_s(steps[done]) + options_.move_timeout_s;
       if (std::chrono::duration<double>(Clock::now() - head_since).count() > allowed)
@@ -241,6 +314,51 @@ MotionResult Motion::run(const std::vector<MotionStep>& steps, const MotionHooks
   }
   res.ok = true;
   return res;
+}
+
+int Motion::clear_heartbeat_lost(const MotionHooks& hooks, rbx1_status_resp& st, int& recovered, std::string& error) {
+  // CLEAR_FAULT and ENABLE are safe to repeat: a link error on either is recovered and the state read again.
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    rbx1_clear_fault_resp cf{};
+    int r = link_.clear_fault(cf);
+    if (r == 0 && cf.status != RBX1_OK) {
+      error = std::string("could not clear HEARTBEAT_LOST: CLEAR_FAULT refused: ") + rbx1_status_name(cf.status);
+      return -EPERM;
+    }
+    if (r < 0 && !link_error(r)) {
+      error = link_.name() + ": CLEAR_FAULT failed (" + std::to_string(r) + ")";
+      return r;
+    }
+    if (r < 0) {
+      if (int rr = recover(hooks, error); rr < 0) return rr;
+      ++recovered;
+    }
+    if ((r = link_.status(st)) < 0) {
+      if (!link_error(r) || recover(hooks, error) < 0) {
+        if (error.empty()) error = link_.name() + ": STATUS failed (" + std::to_string(r) + ")";
+        return r;
+      }
+      ++recovered;
+      continue;
+    }
+    if (hooks.on_status) hooks.on_status(st);
+    if (st.faults & RBX1_FAULTS_LATCHING) continue;  // the CLEAR_FAULT was lost with the link: again
+    if (!st.enabled) {
+      rbx1_enable_resp en{};
+      r = link_.enable(true, en);
+      if (r < 0 && link_error(r)) continue;
+      if (r < 0 || en.status != RBX1_OK) {
+        error = "could not re-enable the drivers after HEARTBEAT_LOST: " +
+                (r < 0 ? std::to_string(r) : std::string(rbx1_status_name(en.status)));
+        return -EPERM;
+      }
+      if (link_.status(st) < 0) continue;
+      if (hooks.on_status) hooks.on_status(st);
+    }
+    return 0;
+  }
+  error = "could not clear HEARTBEAT_LOST: the link kept failing (" + link_.name() + ")";
+  return -EIO;
 }
 
 }  // namespace rbx1::daemon

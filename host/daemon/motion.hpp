@@ -56,9 +56,20 @@ class Motion {
   int recover(const MotionHooks& hooks, std::string& error);
 
  private:
+  // CLEAR_FAULT (and ENABLE when needed) after a heartbeat loss, surviving link errors; st is the STATUS after.
+  int clear_heartbeat_lost(const MotionHooks& hooks, rbx1_status_resp& st, int& recovered, std::string& error);
+
   link::Link& link_;
   MotionOptions options_;
 };
+
+// Entries in the firmware's queue that this host did not send (a previous daemon's, a power-cycled board's
+// leftovers never exist): when the firmware is moving, homing, stopping or its queue is not empty, STOP, and
+// wait until it is at rest. st: the last STATUS in, the STATUS at rest out; stopped: entries that were queued.
+// 0 or -errno (error filled).
+int stop_foreign(link::Link& link, rbx1_status_resp& st, int& stopped, std::string& error);
+// True when any of STATUS's queue counters is below the earlier reading (a power-cycled or another firmware).
+bool counters_went_back(const rbx1_status_resp& before, const rbx1_status_resp& now);
 
 // "IDLE", "MOVING", ... for a state byte; fault bits as names.
 const char* state_name(uint8_t state);

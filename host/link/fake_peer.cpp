@@ -90,6 +90,8 @@ void FakePeer::handle(const rbx1_frame& f) {
     --drop_next;
     return;
   }
+  if (silence_after_type < 0) silence_left_ = -1;
+  if (silence_left_ == 0) return;
   if (nak_next > 0) {
     --nak_next;
     rbx1_nak nak{RBX1_BAD_CRC};
@@ -116,6 +118,7 @@ void FakePeer::handle(const rbx1_frame& f) {
     respond(f.seq, last_resp_type_, last_resp_, last_resp_len_, corrupt);
     return;
   }
+  if (silence_left_ > 0) --silence_left_;  // counts new requests; a retransmission above is answered again
   uint8_t resp[RBX1_MAX_PAYLOAD];
   uint8_t len = execute(f, resp);
   if (f.type != RBX1_MSG_ESTOP) {
@@ -134,6 +137,7 @@ void FakePeer::handle(const rbx1_frame& f) {
   }
   respond(f.seq, RBX1_RESPONSE(f.type), resp, len, corrupt);
   if (duplicate) respond(f.seq, RBX1_RESPONSE(f.type), resp, len, false);
+  if (silence_left_ < 0 && silence_after_type == f.type) silence_left_ = silence_after_count;
 }
 
 // A tiny firmware: every request succeeds; MOVE and GRIPPER count as done at once.
@@ -159,6 +163,9 @@ uint8_t FakePeer::execute(const rbx1_frame& f, uint8_t* resp) {
     case RBX1_MSG_STATUS: {
       rbx1_status_resp s{};
       s.moves_done = moves_done_;
+      s.moves_accepted = moves_done_;  // every entry completes at once
+      s.homed = homed_;
+      s.enabled = enabled_;
       s.queue_free = 8;
       for (int j = 0; j < RBX1_JOINTS; ++j) s.position[j] = j * 1000 - 2500;
       return rbx1_status_resp_pack(&s, resp);
@@ -169,6 +176,15 @@ uint8_t FakePeer::execute(const rbx1_frame& f, uint8_t* resp) {
       rbx1_move_resp m{RBX1_OK, 7};
       return rbx1_move_resp_pack(&m, resp);
     }
+    case RBX1_MSG_SET_POSITION:
+    case RBX1_MSG_HOME:
+      homed_ = 0x3F;
+      resp[0] = RBX1_OK;
+      return 1;
+    case RBX1_MSG_ENABLE:
+      enabled_ = f.len == 1 ? f.payload[0] : enabled_;
+      resp[0] = RBX1_OK;
+      return 1;
     case RBX1_MSG_CONFIG_GET: {
       rbx1_config_get_req q{};
       rbx1_config_get_req_unpack(&q, f.payload, f.len);

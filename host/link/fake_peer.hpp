@@ -38,6 +38,11 @@ class FakePeer {
   std::atomic<int> delay_ms{0};        // ... for this long (the peer keeps reading meanwhile)
   std::atomic<uint8_t> proto_version{RBX1_PROTO_VERSION};
   std::atomic<uint8_t> last_seq{41};   // reported by HELLO until a request is executed
+  // After the next executed request of this type, execute silence_after_count more new requests (retransmissions
+  // meanwhile answered as usual), then answer nothing at all (a line that dies at a chosen point of an exchange);
+  // -1 disarms and ends the silence.
+  std::atomic<int> silence_after_type{-1};
+  std::atomic<int> silence_after_count{0};
 
   // Records.
   std::vector<Received> received() const;
@@ -75,6 +80,8 @@ class FakePeer {
   uint16_t last_crc_ = 0;
   uint8_t last_resp_[RBX1_MAX_PAYLOAD];
   uint16_t moves_done_ = 0;
+  uint8_t homed_ = 0, enabled_ = 0;  // SET_POSITION/HOME and ENABLE, reported by STATUS
+  int silence_left_ = -1;            // frames still answered before the silence; -1 none armed
 };
 
 }  // namespace rbx1::link::test

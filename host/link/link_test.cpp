@@ -329,11 +329,13 @@ TEST(Link, HandshakeWaitsForABootingBoard) {
 
 TEST(Link, VersionMismatchIsAClearError) {
   FakePeer peer;
-  peer.proto_version = 2;
+  peer.proto_version = RBX1_PROTO_VERSION + 1;
   Link link;
   std::string error;
   EXPECT_EQ(link.open(peer.slave_path(), 115200, error), -EPROTO);
-  EXPECT_NE(error.find("protocol version 2, this host " + std::to_string(RBX1_PROTO_VERSION)), std::string::npos)
+  EXPECT_NE(error.find("protocol version " + std::to_string(RBX1_PROTO_VERSION + 1) + ", this host " +
+                       std::to_string(RBX1_PROTO_VERSION)),
+            std::string::npos)
       << error;
   EXPECT_NE(error.find("rbx1-flash " + peer.slave_path()), std::string::npos) << error;
   EXPECT_NE(error.find("make flash PORT=" + peer.slave_path() + ")"), std::string::npos) << error;

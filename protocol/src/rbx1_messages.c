@@ -81,6 +81,8 @@ uint8_t rbx1_status_resp_pack(const rbx1_status_resp *m, uint8_t *payload) {
   put_u16(payload + 8, m->moves_done);
   put_u16(payload + 10, m->gripper_us);
   for (i = 0; i < 6; i++) put_i32(payload + 12 + 4 * i, m->position[i]);
+  put_u16(payload + 36, m->moves_accepted);
+  put_u16(payload + 38, m->moves_flushed);
   return RBX1_STATUS_RESP_LEN;
 }
 
@@ -97,6 +99,8 @@ uint8_t rbx1_status_resp_unpack(rbx1_status_resp *m, const uint8_t *payload, uin
   m->moves_done = get_u16(payload + 8);
   m->gripper_us = get_u16(payload + 10);
   for (i = 0; i < 6; i++) m->position[i] = get_i32(payload + 12 + 4 * i);
+  m->moves_accepted = get_u16(payload + 36);
+  m->moves_flushed = get_u16(payload + 38);
   return RBX1_OK;
 }
 

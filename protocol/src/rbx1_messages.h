@@ -9,7 +9,7 @@
 extern "C" {
 #endif
 
-#define RBX1_MESSAGES_VERSION 1
+#define RBX1_MESSAGES_VERSION 2
 
 /* Message types (a response is the request type | 0x80). */
 enum rbx1_msg_type {
@@ -115,7 +115,7 @@ const rbx1_key_info *rbx1_key_lookup(uint8_t key);
 #define RBX1_HELLO_REQ_LEN 1
 #define RBX1_HELLO_RESP_LEN 10
 #define RBX1_STATUS_REQ_LEN 0
-#define RBX1_STATUS_RESP_LEN 36
+#define RBX1_STATUS_RESP_LEN 40
 #define RBX1_HEARTBEAT_REQ_LEN 0
 #define RBX1_HEARTBEAT_RESP_LEN 1
 #define RBX1_MOVE_REQ_LEN 26
@@ -168,6 +168,8 @@ typedef struct {
   uint16_t moves_done;
   uint16_t gripper_us;
   int32_t position[6];
+  uint16_t moves_accepted;
+  uint16_t moves_flushed;
 } rbx1_status_resp;
 typedef struct {
   uint8_t status;

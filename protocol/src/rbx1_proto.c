@@ -92,7 +92,13 @@ void rbx1_decoder_feed(rbx1_decoder *d, const uint8_t *data, size_t n) {
 
 int rbx1_decoder_reset(rbx1_decoder *d) {
   int pending = d->n > 0;
-  d->n = 0;
+  /* Every byte held is older than the timeout: drop the candidate's SYNC and scan the rest again, as after a
+   * rejection, so a whole frame hidden inside is still delivered; a new candidate left incomplete is as stale, and
+   * goes the same way. */
+  while (d->n > 0) {
+    decoder_shift(d, 1);
+    decoder_settle(d);
+  }
   return pending;
 }
 

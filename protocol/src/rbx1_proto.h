@@ -10,7 +10,7 @@
 extern "C" {
 #endif
 
-#define RBX1_PROTO_VERSION 1
+#define RBX1_PROTO_VERSION 2
 #define RBX1_SYNC 0xA5
 #define RBX1_MAX_PAYLOAD 58
 #define RBX1_FRAME_OVERHEAD 6
@@ -58,7 +58,8 @@ void rbx1_decoder_init(rbx1_decoder *d, rbx1_on_frame on_frame, rbx1_on_reject o
  * one CRC over 61 bytes (ATmega2560 at 16 MHz: about 300 cycles per byte of valid traffic, 11.4k cycles worst case
  * for one byte). Callbacks may call rbx1_decoder_reset but must not feed the same decoder. */
 void rbx1_decoder_feed(rbx1_decoder *d, const uint8_t *data, size_t n);
-/* Drops a partial frame (inter-byte timeout). Returns 1 if one was pending. */
+/* Inter-byte timeout: drops the partial frame's SYNC and rescans the bytes after it (a complete frame among them is
+ * delivered through the callbacks; an incomplete rest is dropped too). Returns 1 if a frame was pending. */
 int rbx1_decoder_reset(rbx1_decoder *d);
 /* 1 while a frame has started but not completed. */
 int rbx1_decoder_pending(const rbx1_decoder *d);

@@ -29,7 +29,10 @@ struct Recorder {
   }
 };
 
-json decode_chunked(const std::vector<uint8_t>& wire, const std::vector<size_t>& chunks, bool* pending) {
+// Feeds wire in chunks; then, when after_timeout is given, the inter-byte timeout (rbx1_decoder_reset) and the
+// events its rescan produced.
+json decode_chunked(const std::vector<uint8_t>& wire, const std::vector<size_t>& chunks, bool* pending,
+                    json* after_timeout = nullptr) {
   Recorder r;
   size_t pos = 0, k = 0;
   while (pos < wire.size()) {
@@ -38,7 +41,14 @@ json decode_chunked(const std::vector<uint8_t>& wire, const std::vector<size_t>&
     pos += n;
   }
   *pending = rbx1_decoder_pending(&r.dec) != 0;
-  return r.events;
+  json events = r.events;
+  if (after_timeout) {
+    r.events = json::array();
+    EXPECT_EQ(rbx1_decoder_reset(&r.dec), *pending ? 1 : 0);
+    EXPECT_FALSE(rbx1_decoder_pending(&r.dec));
+    *after_timeout = r.events;
+  }
+  return events;
 }
 
 }  // namespace
@@ -101,9 +111,11 @@ TEST(Decoder, StreamVectorsInAnyChunking) {
     auto wire = unhex(v["wire"]);
     for (const auto& ch : chunkings) {
       bool pending = false;
-      json got = decode_chunked(wire, ch, &pending);
+      json timeout;
+      json got = decode_chunked(wire, ch, &pending, &timeout);
       EXPECT_EQ(got, v["events"]) << v["name"] << " chunk " << ch[0];
       EXPECT_EQ(pending, v["pending"].get<bool>()) << v["name"];
+      EXPECT_EQ(timeout, v["after_timeout"]) << v["name"] << " chunk " << ch[0];
     }
   }
 }
@@ -122,7 +134,7 @@ TEST(Decoder, MessageVectorsDecodeToTheirFrame) {
   }
 }
 
-TEST(Decoder, ResetDropsPartialFrameAndNextFrameDecodes) {
+TEST(Decoder, TimeoutRescanFindsTheSwallowedFrameAndNextFrameDecodes) {
   auto vs = load_vectors("streams.json");
   std::vector<uint8_t> trunc, status;
   for (const auto& v : vs) {
@@ -133,11 +145,14 @@ TEST(Decoder, ResetDropsPartialFrameAndNextFrameDecodes) {
   Recorder r;
   rbx1_decoder_feed(&r.dec, trunc.data(), trunc.size());
   EXPECT_TRUE(rbx1_decoder_pending(&r.dec));
+  EXPECT_TRUE(r.events.empty());
   EXPECT_EQ(rbx1_decoder_reset(&r.dec), 1);
+  ASSERT_EQ(r.events.size(), 1u);  // the STATUS the partial MOVE had swallowed
+  EXPECT_EQ(r.events[0]["frame"]["type"], RBX1_MSG_STATUS);
   EXPECT_EQ(rbx1_decoder_reset(&r.dec), 0);
   rbx1_decoder_feed(&r.dec, status.data(), status.size());
-  ASSERT_EQ(r.events.size(), 1u);
-  EXPECT_EQ(r.events[0]["frame"]["type"], RBX1_MSG_STATUS);
+  ASSERT_EQ(r.events.size(), 2u);
+  EXPECT_EQ(r.events[1]["frame"]["type"], RBX1_MSG_STATUS);
 }
 
 TEST(Decoder, RandomFramesInRandomNoiseAreAllFound) {

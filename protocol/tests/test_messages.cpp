@@ -26,7 +26,8 @@ template <class V> void visit(rbx1_hello_resp& m, V&& v) {
 template <class V> void visit(rbx1_status_resp& m, V&& v) {
   v("status", m.status); v("state", m.state); v("faults", m.faults); v("homed", m.homed); v("inputs", m.inputs);
   v("enabled", m.enabled); v("queue_free", m.queue_free); v("moves_done", m.moves_done);
-  v("gripper_us", m.gripper_us); v("position", m.position);
+  v("gripper_us", m.gripper_us); v("position", m.position); v("moves_accepted", m.moves_accepted);
+  v("moves_flushed", m.moves_flushed);
 }
 template <class V> void visit(rbx1_heartbeat_resp& m, V&& v) { v("status", m.status); }
 template <class V> void visit(rbx1_move_req& m, V&& v) { v("target", m.target); v("duration_ms", m.duration_ms); }
@@ -209,7 +210,7 @@ TEST(Messages, UnpackRejectsEveryWrongLength) {
 TEST(Messages, LengthsMatchTheContract) {
   EXPECT_EQ(RBX1_MOVE_REQ_LEN, 26);
   EXPECT_EQ(RBX1_MOVE_RESP_LEN, 2);
-  EXPECT_EQ(RBX1_STATUS_RESP_LEN, 36);
+  EXPECT_EQ(RBX1_STATUS_RESP_LEN, 40);
   EXPECT_EQ(RBX1_HELLO_RESP_LEN, 10);
   EXPECT_EQ(rbx1_request_len(RBX1_MSG_MOVE), 26);
   EXPECT_EQ(rbx1_request_len(RBX1_MSG_STATUS), 0);
@@ -218,7 +219,7 @@ TEST(Messages, LengthsMatchTheContract) {
   EXPECT_EQ(rbx1_request_len(0x00), -1);
   EXPECT_EQ(rbx1_request_len(0x0F), -1);
   EXPECT_EQ(rbx1_request_len(RBX1_RESPONSE(RBX1_MSG_MOVE)), -1);
-  EXPECT_EQ(rbx1_response_len(RBX1_MSG_STATUS), 36);
+  EXPECT_EQ(rbx1_response_len(RBX1_MSG_STATUS), 40);
   int known = 0;
   for (int t = 0; t < 256; t++) known += rbx1_request_len(static_cast<uint8_t>(t)) >= 0;
   EXPECT_EQ(known, 14);

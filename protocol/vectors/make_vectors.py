@@ -28,7 +28,8 @@ SAMPLES = {
                      {"status": Status.OK, "state": State.MOVING, "faults": int(Fault.EEPROM_DEFAULTS),
                       "homed": 0x3F, "inputs": int(Input.LIMIT_J2 | Input.ESTOP), "enabled": 1, "queue_free": 15,
                       "moves_done": 0xA5A5, "gripper_us": 1500,
-                      "position": [0, -1, 123456, -123456, I32_MAX, I32_MIN]}),
+                      "position": [0, -1, 123456, -123456, I32_MAX, I32_MIN],
+                      "moves_accepted": 0xA5A7, "moves_flushed": 1}),
     MsgType.HEARTBEAT: ({}, {"status": Status.OK}),
     MsgType.MOVE: ({"target": [1000, -2000, 0, 0xA5A5A5, -0xA5, 42], "duration_ms": 1500},
                    {"status": Status.OK, "queue_free": 14}),
@@ -113,8 +114,9 @@ def stream_vectors():
 
     S = []
 
-    def add(name, description, wire, events, pending=False):
-        S.append({"name": name, "description": description, "wire": wire.hex(), "events": events, "pending": pending})
+    def add(name, description, wire, events, pending=False, after_timeout=()):
+        S.append({"name": name, "description": description, "wire": wire.hex(), "events": events, "pending": pending,
+                  "after_timeout": list(after_timeout)})
 
     add("single_move", "one MOVE request (32 bytes on the wire)", move, [ev_frame(move)])
     add("empty_payload", "STATUS request: LEN 0, 6 bytes", status, [ev_frame(status)])
@@ -148,7 +150,11 @@ def stream_vectors():
     add("truncated", "a MOVE cut 2 bytes short: nothing yet, frame pending", move[:-2], [], pending=True)
     add("truncated_header", "SYNC and LEN only", move[:2], [], pending=True)
     add("truncated_swallows_short_frame", "a MOVE cut after 10 bytes, then a STATUS: the STATUS bytes are taken as "
-        "the MOVE's continuation (the 50 ms inter-byte timeout resolves this)", move[:10] + status, [], pending=True)
+        "the MOVE's continuation; the 50 ms inter-byte timeout drops the MOVE's SYNC and the rescan finds the STATUS",
+        move[:10] + status, [], pending=True, after_timeout=[ev_frame(status)])
+    add("truncated_then_sync_noise", "a MOVE cut after 10 bytes, then a stray SYNC and a truncated STATUS: the "
+        "timeout's rescan rejects the stray SYNC (LEN read as 0xA5) and drops the rest", move[:10] + b"\xa5" + status[:4],
+        [], pending=True, after_timeout=[ev_reject(Status.BAD_LENGTH, status[1])])
     add("sync_noise", "four stray SYNCs then a frame", bytes([0xA5] * 4) + status,
         [ev_reject(Status.BAD_LENGTH, 0xA5), ev_reject(Status.BAD_LENGTH, 0xA5), ev_reject(Status.BAD_LENGTH, 0xA5),
          ev_reject(Status.BAD_LENGTH, status[1]), ev_frame(status)])
@@ -162,15 +168,20 @@ def stream_vectors():
     add("frames_around_garbage", "frame, garbage, frame", status + b"\x00\x01\x02" + nak, [ev_frame(status),
         ev_frame(nak)])
 
-    d = frame.Decoder()
+    def as_events(items):
+        return [{"frame": {"seq": e.seq, "type": e.type, "payload": e.payload.hex(), "crc": e.crc}}
+                if isinstance(e, frame.Frame) else {"reject": {"status": Status(e.status).name, "seq": e.seq}}
+                for e in items]
+
     for s in S:
-        d.reset()
-        got = d.feed(bytes.fromhex(s["wire"]))
-        got = [{"frame": {"seq": e.seq, "type": e.type, "payload": e.payload.hex(), "crc": e.crc}}
-               if isinstance(e, frame.Frame) else {"reject": {"status": Status(e.status).name, "seq": e.seq}}
-               for e in got]
+        d = frame.Decoder()
+        got = as_events(d.feed(bytes.fromhex(s["wire"])))
         if got != s["events"] or d.pending() != s["pending"]:
             raise SystemExit(f"make_vectors: {s['name']}: constructed {s['events']} but the decoder gives {got}")
+        pending, items = d.reset()
+        if as_events(items) != s["after_timeout"] or pending != s["pending"] or d.pending():
+            raise SystemExit(f"make_vectors: {s['name']}: constructed {s['after_timeout']} after the timeout but the "
+                             f"decoder gives {as_events(items)}")
     return S
 
 
@@ -201,10 +212,11 @@ def main():
         "messages.json": {"description": "every message type's request and response (and NAKs): fields, payload and "
                           "wire bytes in hex; crc is the frame's CRC", "vectors": message_vectors()},
         "streams.json": {"description": "byte streams and the decoder events they produce, in order, for any "
-                         "chunking; pending: a partial frame remains at the end", "vectors": stream_vectors()},
+                         "chunking; pending: a partial frame remains at the end; after_timeout: the events of the inter-byte "
+                         "timeout that follows (its rescan)", "vectors": stream_vectors()},
         "bad_payloads.json": {"description": "CRC-valid frames whose payload length is wrong for their type: "
                               "unpack refuses them (BAD_LENGTH; the firmware answers a request like this with "
-                              "status BAD_LENGTH)", "vectors": bad_payload_vectors()},
+                              "status BAD_LENGTH, except ESTOP, which stops the arm whatever its length)", "vectors": bad_payload_vectors()},
         "crc.json": {"description": "CRC-16/CCITT-FALSE of data (hex)", "vectors": crc_vectors()},
     }
     for name, doc in docs.items():

@@ -34,6 +34,44 @@ def test_config_errors_name_each_key(tmp_path):
     assert len(lines) == 5, r.stderr
 
 
+def test_check_config_opens_what_the_daemon_would(tmp_path):
+    """A missing library or camera file, an unreadable library and px_per_cm = 0 are errors naming the key, not OK."""
+    cases = {
+        "vision.library": lambda c: c["vision"].update(library=str(tmp_path / "nope.json")),
+        "camera.device": lambda c: c["camera"].update(device=str(tmp_path / "nope.png")),
+        "vision.px_per_cm": lambda c: c["vision"].update(px_per_cm=0.0),
+    }
+    for key, change in cases.items():
+        cfg = fast_config()
+        change(cfg)
+        path = e2e.write_config(tmp_path, cfg)
+        r = run(e2e.BIN / "rbx1d", "--config", path, "--check-config")
+        assert r.returncode == 2 and r.stdout == "", (key, r.stdout, r.stderr)
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and f": {key}: " in lines[0], (key, r.stderr)
+    garbage = tmp_path / "library.json"
+    garbage.write_text("{not json")
+    cfg = fast_config()
+    cfg["vision"]["library"] = str(garbage)
+    r = run(e2e.BIN / "rbx1d", "--config", e2e.write_config(tmp_path, cfg), "--check-config")
+    assert r.returncode == 2 and ": vision: " in r.stderr and "library.json" in r.stderr, r.stderr
+
+
+def test_check_syntax_opens_nothing(tmp_path):
+    """--check-syntax (a config for another machine) checks keys and values only: missing files pass, bad keys not."""
+    cfg = fast_config()
+    cfg["vision"]["library"] = str(tmp_path / "nope.json")
+    cfg["camera"]["device"] = "/dev/video99"
+    path = e2e.write_config(tmp_path, cfg)
+    r = run(e2e.BIN / "rbx1d", "--config", path, "--check-syntax")
+    assert r.returncode == 0 and r.stdout == "OK\n", r.stderr
+    r = run(e2e.BIN / "rbx1d", "--config", path, "--check-config")
+    assert r.returncode == 2 and ": vision.library: " in r.stderr and ": camera.device: " in r.stderr, r.stderr
+    cfg["daemon"]["home_on_start"] = "jump"
+    r = run(e2e.BIN / "rbx1d", "--config", e2e.write_config(tmp_path, cfg), "--check-syntax")
+    assert r.returncode == 2 and "daemon.home_on_start" in r.stderr, r.stderr
+
+
 def test_unreadable_config_exits_2(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("[daemon\nsocket = 1\n")

@@ -104,3 +104,38 @@ def test_firmware_reset_mid_pick_is_never_guessed(sim, daemon_factory):
     _, final = d.request({"cmd": "home"})
     assert "result" in final, final
     assert len(sim.moves()) == n + 1  # only the home move ran after the reset
+
+
+def test_lost_move_responses_and_a_lost_hello_are_no_false_reset(sim, daemon_factory):
+    """A MOVE executed whose six answers were lost, then a HELLO of the reconnection executed and unanswered too:
+    HELLO's last_seq names that HELLO, not the MOVE. The journal reads STATUS.moves_accepted instead: the move is
+    known to be queued, never sent again, and no 'moves_done jumped' ends the pick as a false firmware_reset."""
+    d = daemon_factory(sim.port)
+    sim.control("drop 4 6")  # MOVE: the first one of the pick (to the scan pose) runs, its answers are lost
+    sim.control("drop 1 6")  # HELLO: the first one of the reconnection likewise
+    events, final = pick(d, e2e.scene_labels()[0])
+    assert "result" in final, final
+    journal = e2e.events_named(events, "journal")
+    assert journal and journal[0]["accepted_before_outage"] is True, journal
+    log = sim.moves()
+    scan = [e for e in events if e["event"] == "step_done"][0]
+    assert log[0]["target"] == scan["target"]
+    e2e.assert_log_is_plan(log[1:], e2e.planned_waypoints(events))
+
+
+def test_link_error_on_clear_fault_after_heartbeat_loss(tmp_path, sim, daemon_factory):
+    """A 2 s outage loses the heartbeat; the CLEAR_FAULT that follows is executed but its answers are lost (a link
+    error): the job recovers the link, reads that the fault is gone, and completes the pick."""
+    sim.control("drop 9 6")
+
+    def outage(proxy):
+        time.sleep(0.05)
+        proxy.set_cut(True)
+        time.sleep(2.0)
+        proxy.set_cut(False)
+
+    events, final = run_with_outage(tmp_path, sim, daemon_factory, "descend", outage)
+    assert e2e.events_named(events, "heartbeat_lost"), [e["event"] for e in events]
+    assert final["result"]["link_recoveries"] >= 2, final  # the outage, then the CLEAR_FAULT
+    downs = [e for e in events if e["event"] == "link_down"]
+    assert len(downs) >= 2, [e["event"] for e in events]

@@ -140,12 +140,13 @@ static uint8_t cmd_enable(const rbx1_frame *f, uint8_t *out) {
   return rbx1_enable_resp_pack(&r, out);
 }
 
-// SET_POSITION position i32[6] -> —. IDLE: declares the positions and marks every joint homed.
+// SET_POSITION position i32[6] -> —. IDLE, inside the soft limits: declares the positions, marks every joint homed.
 static uint8_t cmd_set_position(const rbx1_frame *f, uint8_t *out) {
   rbx1_set_position_req req;
   rbx1_set_position_resp r;
   rbx1_set_position_req_unpack(&req, f->payload, f->len);
   r.status = rest_allowed(0);
+  if (r.status == RBX1_OK) r.status = soft_limits_check(req.position);
   if (r.status == RBX1_OK) {
     st_set_position(req.position);
     sys.homed = 0x3F;

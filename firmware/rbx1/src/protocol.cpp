@@ -34,7 +34,9 @@ static void on_frame(void *ctx, const rbx1_frame *f) {
   safety_request_seen();
   uint8_t type = RBX1_RESPONSE(f->type);
   uint8_t out[RBX1_MAX_PAYLOAD];
-  if (f->type == RBX1_MSG_ESTOP && want == f->len) {  // always executed, never recorded: a retransmitted ESTOP acts again
+  // ESTOP: any CRC-valid frame of its TYPE stops the arm, whatever its payload length (the safe reading of a frame
+  // that is surely an e-stop); executed every time, never recorded, so a retransmitted ESTOP acts again.
+  if (f->type == RBX1_MSG_ESTOP) {
     send(f->seq, type, out, cmd_execute(f, out));
     return;
   }

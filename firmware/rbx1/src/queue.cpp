@@ -11,11 +11,13 @@ static uint8_t head, tail, count;  // count is changed only with interrupts off
 static uint8_t epoch, reserved_epoch;
 static int32_t last_target[6];
 static uint8_t last_target_valid;
+static uint16_t accepted, flushed;
 
 void queue_init(void) {
   head = tail = count = 0;
   epoch = reserved_epoch = 0;
   last_target_valid = 0;
+  accepted = flushed = 0;
 }
 
 uint8_t queue_count(void) {
@@ -46,6 +48,7 @@ uint8_t queue_commit(void) {
     }
     head = (uint8_t)((head + 1) % QUEUE_SIZE);
     count++;
+    accepted++;
   }
   hal_irq_restore(s);
   return ok;
@@ -74,6 +77,7 @@ void queue_pop(void) {
 void queue_flush(uint8_t keep_first) {
   hal_irq_state s = hal_irq_save();
   uint8_t keep = (keep_first && count) ? 1 : 0;
+  flushed = (uint16_t)(flushed + (count - keep));
   count = keep;
   head = (uint8_t)((tail + keep) % QUEUE_SIZE);
   epoch++;
@@ -81,4 +85,18 @@ void queue_flush(uint8_t keep_first) {
   last_target_valid = keep && blocks[tail].kind == BLOCK_MOVE;
   if (last_target_valid) memcpy(last_target, blocks[tail].target, sizeof(last_target));
   hal_irq_restore(s);
+}
+
+uint16_t queue_accepted(void) {
+  hal_irq_state s = hal_irq_save();
+  uint16_t a = accepted;
+  hal_irq_restore(s);
+  return a;
+}
+
+uint16_t queue_flushed(void) {
+  hal_irq_state s = hal_irq_save();
+  uint16_t f = flushed;
+  hal_irq_restore(s);
+  return f;
 }

@@ -24,5 +24,9 @@ plan_block *queue_first(void);
 void queue_pop(void);
 // Drops entries; keep_first keeps the executing one. Interrupt-safe.
 void queue_flush(uint8_t keep_first);
+// Entries committed and entries dropped without completing, since power-up (STATUS.moves_accepted and
+// moves_flushed; both wrap at 65536). accepted = moves_done + flushed + queue_count() whenever interrupts are off.
+uint16_t queue_accepted(void);
+uint16_t queue_flushed(void);
 
 #endif

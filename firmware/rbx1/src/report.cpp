@@ -27,8 +27,13 @@ void report_status(rbx1_status_resp *r) {
   r->homed = sys.homed;
   r->inputs = (uint8_t)(hal_limit_inputs() | (hal_estop_input() ? RBX1_INPUT_ESTOP : 0));
   r->enabled = sys.enabled;
-  r->queue_free = queue_free();
-  r->moves_done = st_moves_done();
   r->gripper_us = st_gripper_us();
   st_position(r->position);
+  // The queue's counters in one snapshot: moves_accepted = moves_done + moves_flushed + queued entries.
+  hal_irq_state s = hal_irq_save();
+  r->queue_free = queue_free();
+  r->moves_done = st_moves_done();
+  r->moves_accepted = queue_accepted();
+  r->moves_flushed = queue_flushed();
+  hal_irq_restore(s);
 }

@@ -41,7 +41,7 @@ uint8_t sys_all_homed(void) { return sys.homed == 0x3F; }
 
 uint8_t sys_state(void) {
   if (sys_faulted()) return RBX1_STATE_FAULT;
-  if (st_stopping()) return RBX1_STATE_STOPPING;
+  if (st_stopping() || sys.stop_fault) return RBX1_STATE_STOPPING;  // until at rest and its fault latched
   if (homing_active()) return RBX1_STATE_HOMING;
   if (st_busy() || queue_count() > 0) return RBX1_STATE_MOVING;
   return RBX1_STATE_IDLE;

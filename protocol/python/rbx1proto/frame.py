@@ -45,10 +45,14 @@ class Decoder:
         return bool(self.buf)
 
     def reset(self):
-        """Drops a partial frame (inter-byte timeout); True if one was pending."""
+        """Inter-byte timeout: drops the partial frame's SYNC and rescans the bytes after it. Returns (pending,
+        items): whether a frame was pending, and the Frames/Rejects the rescan completed (see PROTOCOL.md)."""
         pending = bool(self.buf)
-        self.buf.clear()
-        return pending
+        out = []
+        while self.buf:
+            self._shift(1)
+            self._settle(out)
+        return pending, out
 
     def _shift(self, start):
         i = self.buf.find(SYNC, start)

@@ -7,6 +7,7 @@ from .messages import MsgType
 RESPONSE_BIT = 0x80
 SLOW_TYPES = (MsgType.CONFIG_SET, MsgType.CONFIG_RESET)  # they write EEPROM: answered within 1 s (PROTOCOL.md)
 SLOW_TIMEOUT = 1.0
+INTER_BYTE_TIMEOUT = 0.05  # a partial frame older than this is dropped after a rescan (PROTOCOL.md)
 
 
 class LinkError(Exception):
@@ -33,6 +34,7 @@ class Link:
         self.decoder = frame.Decoder()
         self.rejects = 0  # frames from the firmware that failed CRC/length checks
         self.clock = time.monotonic  # the timeout's clock (tests replace it)
+        self.last_rx = 0.0  # when bytes last arrived (the inter-byte timeout)
 
     def close(self):
         self.ser.close()
@@ -81,7 +83,12 @@ class Link:
                 data = self.ser.read(1) if left > 0 else b""
                 data += self.ser.read(self.ser.in_waiting)
                 if data:
-                    outcome = self._match(self.decoder.feed(data), want, seq)
+                    now = self.clock()
+                    events = []
+                    if self.decoder.pending() and now - self.last_rx > INTER_BYTE_TIMEOUT:
+                        events = self.decoder.reset()[1]  # a stale partial frame: rescanned, then dropped
+                    self.last_rx = now
+                    outcome = self._match(events + self.decoder.feed(data), want, seq)
                     if outcome == "nak":
                         break
                     if outcome is not None:

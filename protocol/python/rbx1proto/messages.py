@@ -3,7 +3,7 @@ protocol/messages.json: do not edit; change messages.json and run protocol/gen.p
 import enum
 import struct
 
-PROTO_VERSION = 1
+PROTO_VERSION = 2
 GLOBAL_JOINT = 0xFF
 
 
@@ -147,7 +147,7 @@ REQUEST_FIELDS = {
 }
 RESPONSE_FIELDS = {
     MsgType.HELLO: (('status', 'u8', 0), ('proto_version', 'u8', 0), ('fw_major', 'u8', 0), ('fw_minor', 'u8', 0), ('fw_patch', 'u8', 0), ('joints', 'u8', 0), ('queue_size', 'u8', 0), ('capabilities', 'u16', 0), ('last_seq', 'u8', 0)),
-    MsgType.STATUS: (('status', 'u8', 0), ('state', 'u8', 0), ('faults', 'u16', 0), ('homed', 'u8', 0), ('inputs', 'u8', 0), ('enabled', 'u8', 0), ('queue_free', 'u8', 0), ('moves_done', 'u16', 0), ('gripper_us', 'u16', 0), ('position', 'i32', 6)),
+    MsgType.STATUS: (('status', 'u8', 0), ('state', 'u8', 0), ('faults', 'u16', 0), ('homed', 'u8', 0), ('inputs', 'u8', 0), ('enabled', 'u8', 0), ('queue_free', 'u8', 0), ('moves_done', 'u16', 0), ('gripper_us', 'u16', 0), ('position', 'i32', 6), ('moves_accepted', 'u16', 0), ('moves_flushed', 'u16', 0)),
     MsgType.HEARTBEAT: (('status', 'u8', 0),),
     MsgType.MOVE: (('status', 'u8', 0), ('queue_free', 'u8', 0)),
     MsgType.GRIPPER: (('status', 'u8', 0), ('queue_free', 'u8', 0)),

@@ -24,7 +24,7 @@ def feed_chunked(data, chunks):
         n = chunks[k % len(chunks)]
         out += d.feed(data[pos:pos + n])
         pos, k = pos + n, k + 1
-    return out, d.pending()
+    return out, d.pending(), d
 
 
 def test_crc_check_value():
@@ -57,18 +57,22 @@ def test_encode_rejects_oversize():
 @pytest.mark.parametrize("chunks", [[1 << 20], [1], [2], [3, 1, 7], [5, 64, 1], [63]])
 @pytest.mark.parametrize("v", STREAMS, ids=lambda v: v["name"])
 def test_stream_vectors(v, chunks):
-    events, pending = feed_chunked(bytes.fromhex(v["wire"]), chunks)
+    events, pending, d = feed_chunked(bytes.fromhex(v["wire"]), chunks)
     assert as_json(events) == v["events"]
     assert pending == v["pending"]
+    was_pending, items = d.reset()  # the inter-byte timeout that follows
+    assert was_pending == v["pending"] and not d.pending()
+    assert as_json(items) == v["after_timeout"]
 
 
-def test_reset_drops_partial_frame():
+def test_timeout_rescan_finds_the_swallowed_frame():
     trunc = next(v for v in STREAMS if v["name"] == "truncated_swallows_short_frame")
     d = frame.Decoder()
     assert d.feed(bytes.fromhex(trunc["wire"])) == []
     assert d.pending()
-    assert d.reset() is True
-    assert d.reset() is False
+    pending, items = d.reset()
+    assert pending is True and [(f.type, f.payload) for f in items] == [(2, b"")]
+    assert d.reset() == (False, [])
     (f,) = d.feed(frame.encode(4, 2))
     assert (f.seq, f.type, f.payload) == (4, 2, b"")
 
@@ -81,7 +85,7 @@ def test_random_frames_in_noise_all_found():
         payload = bytes(rng.randrange(256) for _ in range(rng.randrange(59)))
         sent.append((i, payload))
         wire += frame.encode(i, rng.randrange(256), payload)
-    events, pending = feed_chunked(bytes(wire), [1, 9, 2, 33])
+    events, pending, _ = feed_chunked(bytes(wire), [1, 9, 2, 33])
     assert [(e.seq, e.payload) for e in events] == sent
     assert not pending
 

@@ -76,7 +76,7 @@ def test_pack_rejects_bad_fields():
 
 def test_lengths_and_codes():
     assert messages.request_len(MsgType.MOVE) == 26
-    assert messages.response_len(MsgType.STATUS) == 36
+    assert messages.response_len(MsgType.STATUS) == 40
     assert messages.request_len(MsgType.NAK) == -1
     assert messages.request_len(0x0F) == -1
     assert [int(t) for t in MsgType] == list(range(1, 15)) + [0x7F]

@@ -16,6 +16,7 @@ GLOBAL = messages.GLOBAL_JOINT
 class Board:
     def __init__(self, port, baud=115200, control=None, timeout=0.3, retries=10, boot_wait=0.0):
         self.port, self.baud = port, baud
+        self.clock_slack = 0.0  # how far the device's clock may lag the wall clock and then catch up (--clock-slack)
         # More patient than a host must be (100 ms, 5 retransmissions): the checks test the device, and a busy test
         # machine can deschedule this process past 100 ms. The answer time itself is checked in response_time.
         self.link = Link(port, baudrate=baud, timeout=timeout, retries=retries)

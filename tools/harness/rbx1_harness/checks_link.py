@@ -165,6 +165,19 @@ def partial_frame_timeout(b):
     expect(not naks(ev), f"the partial frame was not dropped by the inter-byte timeout: {naks(ev)}")
 
 
+@check("partial_frame_rescanned")
+def partial_frame_rescanned(b):
+    # PROTOCOL.md: the inter-byte timeout drops a partial frame's SYNC and rescans the bytes after it, so a whole
+    # frame that a truncated one swallowed is still found and answered; the truncated one is never executed.
+    before = b.status()
+    _, cut = b.frame(MsgType.MOVE, target=[100] * 6, duration_ms=0)
+    seq, wire = b.frame(MsgType.STATUS)
+    ev = b.exchange_raw(cut[:10] + wire, until=lambda e: responses(e, MsgType.STATUS, seq), timeout=0.5)
+    expect(len(responses(ev, MsgType.STATUS, seq)) == 1, f"the swallowed STATUS was not found by the rescan: {ev}")
+    s = b.status()
+    expect(s["moves_accepted"] == before["moves_accepted"], f"the truncated MOVE was executed: {brief(s)}")
+
+
 @check("duplicate_not_reexecuted")
 def duplicate_not_reexecuted(b):
     before = b.status()

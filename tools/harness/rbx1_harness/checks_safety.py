@@ -2,6 +2,7 @@
 their fault until CLEAR_FAULT."""
 import time
 
+from rbx1proto import frame
 from rbx1proto.messages import Fault, Input, Key, MsgType, State, Status
 
 from .board import brief, latching
@@ -41,11 +42,34 @@ def estop_message_latches(b):
     frozen(b, s, "ESTOP")
     b.refused(MsgType.MOVE, Status.FAULT_ACTIVE, target=[0] * 6, duration_ms=0)
     b.refused(MsgType.GRIPPER, Status.FAULT_ACTIVE, pulse_us=1500, dwell_ms=0)
-    # ESTOP is exempt from duplicate suppression: the same frame again acts (and answers) again.
-    ev = b.exchange_raw(wire, until=lambda e: responses(e, MsgType.ESTOP, seq))
-    expect(len(responses(ev, MsgType.ESTOP, seq)) == 1, f"repeated ESTOP not answered: {ev}")
-    expect(b.status()["state"] == State.FAULT, "not in FAULT after a repeated ESTOP")
     clears(b)
+    # ESTOP is exempt from duplicate suppression: the very same frame (same SEQ, same CRC), sent again while the
+    # arm moves after the clear, stops it and latches again.
+    start_long_move(b)
+    ev = b.exchange_raw(wire, until=lambda e: responses(e, MsgType.ESTOP, seq))
+    r = responses(ev, MsgType.ESTOP, seq)
+    expect(len(r) == 1 and r[0].payload[0] == Status.OK, f"repeated ESTOP: {ev}")
+    s = b.status()
+    expect(s["state"] == State.FAULT and s["faults"] & Fault.ESTOP_COMMAND, f"after the repeated ESTOP: {brief(s)}")
+    frozen(b, s, "the repeated ESTOP")
+    clears(b)
+
+
+@check("estop_any_length_stops")
+def estop_any_length_stops(b):
+    # PROTOCOL.md: any CRC-valid frame whose TYPE is ESTOP stops the arm, whatever its payload length.
+    for n in (1, 3, 58):
+        start_long_move(b)
+        seq = b.next_seq()
+        ev = b.exchange_raw(frame.encode(seq, MsgType.ESTOP, bytes([0x5A]) * n),
+                            until=lambda e: responses(e, MsgType.ESTOP, seq))
+        r = responses(ev, MsgType.ESTOP, seq)
+        expect(len(r) == 1 and r[0].payload == bytes([Status.OK]), f"ESTOP with {n} payload bytes: {ev}")
+        s = b.status()
+        expect(s["state"] == State.FAULT and s["faults"] & Fault.ESTOP_COMMAND,
+               f"after an ESTOP with {n} payload bytes: {brief(s)}")
+        frozen(b, s, f"an ESTOP with {n} payload bytes")
+        clears(b)
 
 
 @check("estop_input_latches", control=True)

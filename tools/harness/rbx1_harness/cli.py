@@ -23,6 +23,9 @@ def main(argv=None):
                     help="seconds of silence after opening the port before the first HELLO: opening an Arduino's "
                          "port resets it, and the Mega's bootloader keeps any byte of its first 0.83 s (2 is safe)")
     ap.add_argument("--sim-arg", action="append", default=[], help="extra argument for --sim (repeatable)")
+    ap.add_argument("--clock-slack", type=float, default=0.0,
+                    help="seconds the device's clock may run behind the wall clock and catch up (a simulator paced "
+                         "to real time that fell behind: rbx1-avrsim); 0 for a real board and rbx1-simfw")
     ap.add_argument("-k", action="append", dest="select", help="run only checks whose name contains this")
     ap.add_argument("--list", action="store_true", help="list the checks and exit")
     args = ap.parse_args(argv)
@@ -41,6 +44,7 @@ def main(argv=None):
             print(f"# {' '.join(sim.args)} -> {sim.port}")
         try:
             board = Board(args.port, args.baud, args.control, args.timeout, args.retries, args.boot_wait)
+            board.clock_slack = args.clock_slack
         except (LinkError, OSError, AssertionError) as e:
             print(f"FAIL  connect: {args.port}: {e}")
             print("0 passed, 1 failed")
