@@ -1,11 +1,12 @@
 # Top-level entry points. Every target installs what it needs first (tools/install-deps is quiet when done).
 # Host code builds with CMake+Ninja into build/cmake, binaries into build/bin; the AVR firmware into build/firmware.
-.PHONY: all deps host firmware test bench fuzz demo flash deb clean
+.PHONY: all deps host firmware test bench fuzz demo flash deb clean soak
 
 BUILD      := build
 CMAKE_DIR  := $(BUILD)/cmake
 JOBS       ?= 2
 FUZZ_SECONDS ?= 60
+SOAK_PICKS ?= 1000
 PORT       ?= /dev/ttyACM0
 
 all: host firmware
@@ -36,6 +37,11 @@ fuzz: deps
 
 demo: host firmware
 	@tools/demo
+
+# The fault campaign (tools/soak/README.md): SOAK_PICKS picks under line faults, outages, vanished ports, daemon
+# kills and firmware power cycles; the summary also goes to build/soak/summary.json.
+soak: host firmware
+	@tools/soak/soak --picks $(SOAK_PICKS) --progress 25 --json $(BUILD)/soak/summary.json
 
 flash: firmware
 	@tools/flash $(PORT)

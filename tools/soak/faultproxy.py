@@ -1,0 +1,228 @@
+"""faultproxy.py - the soak's serial line: a byte forwarder between the pty rbx1d opens (through a symlink) and the
+simulated firmware's pty (through its --link symlink), with faults per frame and per direction.
+
+Each whole frame crossing the line may be corrupted (one bit of one byte flipped), dropped, duplicated or delayed
+(the line stalls: order is kept), each with its own probability. Bytes that are not a frame (nothing here sends
+any) pass as they come. The line can be cut (an outage: every byte lost both ways), the daemon's side can vanish
+and come back (a USB device unplugged and plugged in), and when the firmware side hangs up (a power-cycled
+board) the proxy reopens the firmware's path as soon as it is back.
+"""
+import os
+import random
+import select
+import threading
+import time
+import tty
+
+SYNC = 0xA5
+MAX_PAYLOAD = 58
+
+
+class Direction:
+    """One way of the line: frame splitting, faults, and an ordered output queue with due times."""
+
+    def __init__(self, name, rates, rng):
+        self.name = name
+        self.rates = rates  # dict: corrupt, drop, duplicate, delay_rate, delay_ms
+        self.rng = rng
+        self.buf = bytearray()
+        self.buf_at = 0.0
+        self.out = []  # (due, bytes), due non-decreasing
+        self.counts = {"frames": 0, "corrupted": 0, "dropped": 0, "duplicated": 0, "delayed": 0}
+
+    def push(self, data, now):
+        if not self.buf:
+            self.buf_at = now
+        self.buf += data
+        self._split(now, flush=False)
+
+    def _emit(self, data, now, frame):
+        r = self.rates
+        delay = 0.0
+        if frame:
+            self.counts["frames"] += 1
+            x = self.rng.random()
+            if x < r["corrupt"]:
+                data = bytearray(data)
+                i = self.rng.randrange(len(data))
+                data[i] ^= 1 << self.rng.randrange(8)
+                data = bytes(data)
+                self.counts["corrupted"] += 1
+            elif x < r["corrupt"] + r["drop"]:
+                self.counts["dropped"] += 1
+                return
+            elif x < r["corrupt"] + r["drop"] + r["duplicate"]:
+                data = data + data
+                self.counts["duplicated"] += 1
+            if self.rng.random() < r["delay_rate"]:
+                delay = r["delay_ms"] / 1000.0
+                self.counts["delayed"] += 1
+        due = max(now + delay, self.out[-1][0] if self.out else 0.0)
+        self.out.append((due, bytes(data)))
+
+    def _split(self, now, flush):
+        b = self.buf
+        while b:
+            if b[0] != SYNC:
+                i = b.find(SYNC)
+                n = len(b) if i < 0 else i
+                self._emit(bytes(b[:n]), now, False)
+                del b[:n]
+                continue
+            if len(b) < 2:
+                break
+            if b[1] > MAX_PAYLOAD:
+                self._emit(bytes(b[:1]), now, False)
+                del b[:1]
+                continue
+            n = b[1] + 6
+            if len(b) < n:
+                break
+            self._emit(bytes(b[:n]), now, True)
+            del b[:n]
+        if flush and b:  # a partial frame that waited too long: pass it as it is
+            self._emit(bytes(b), now, False)
+            b.clear()
+        self.buf_at = now
+
+    def due(self, now):
+        """Bytes whose time has come; stale partial frames are flushed first."""
+        if self.buf and now - self.buf_at > 0.02:
+            self._split(now, flush=True)
+        ready = b""
+        while self.out and self.out[0][0] <= now:
+            ready += self.out.pop(0)[1]
+        return ready
+
+    def clear(self):
+        self.buf.clear()
+        self.out.clear()
+
+
+class FaultProxy:
+    def __init__(self, target_path, link_path, rates, seed):
+        self.target_path = target_path
+        self.link_path = link_path
+        rng = random.Random(seed)
+        self.to_fw = Direction("to_fw", rates, random.Random(rng.random()))
+        self.to_host = Direction("to_host", rates, random.Random(rng.random()))
+        self.lock = threading.Lock()
+        self.cut = False
+        self.master = None
+        self.target = None
+        self.target_reopens = 0
+        self._stop = False
+        self._open_target()
+        self._open_side()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _open_target(self):
+        try:
+            fd = os.open(self.target_path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        except OSError:
+            return False
+        tty.setraw(fd)
+        self.target = fd
+        return True
+
+    def _open_side(self):
+        master, slave = os.openpty()
+        tty.setraw(master)
+        tty.setraw(slave)
+        name = os.ttyname(slave)
+        os.close(slave)  # the daemon opens it by name; the master keeps the pty alive
+        tmp = self.link_path + ".new"
+        if os.path.lexists(tmp):
+            os.unlink(tmp)
+        os.symlink(name, tmp)
+        os.replace(tmp, self.link_path)
+        with self.lock:
+            self.master = master
+
+    def vanish(self):
+        with self.lock:
+            m, self.master = self.master, None
+            self.to_fw.clear()
+            self.to_host.clear()
+        if os.path.lexists(self.link_path):
+            os.unlink(self.link_path)
+        if m is not None:
+            os.close(m)
+
+    def reappear(self):
+        self._open_side()
+
+    def set_cut(self, cut):
+        with self.lock:
+            self.cut = cut
+            if cut:
+                self.to_fw.clear()
+                self.to_host.clear()
+
+    def counts(self):
+        with self.lock:
+            return {"to_fw": dict(self.to_fw.counts), "to_host": dict(self.to_host.counts)}
+
+    def _target_gone(self):
+        if self.target is not None:
+            os.close(self.target)
+            self.target = None
+        self.to_fw.clear()
+        self.to_host.clear()
+
+    def _run(self):
+        while not self._stop:
+            with self.lock:
+                m = self.master
+            if self.target is None:
+                if self._open_target():
+                    self.target_reopens += 1
+                else:
+                    time.sleep(0.02)
+                    continue
+            fds = [self.target] + ([m] if m is not None else [])
+            try:
+                r, _, _ = select.select(fds, [], [], 0.002)
+            except (OSError, ValueError):
+                continue
+            now = time.monotonic()
+            for fd in r:
+                try:
+                    data = os.read(fd, 4096)
+                except BlockingIOError:
+                    continue
+                except OSError:
+                    if fd == self.target:
+                        self._target_gone()  # the board hung up (power cycle): reopen its path when it is back
+                        break
+                    time.sleep(0.002)  # the daemon side is closed (between opens): wait for it
+                    continue
+                if not data:
+                    if fd == self.target:
+                        self._target_gone()
+                        break
+                    continue
+                with self.lock:
+                    if self.cut:
+                        continue
+                    (self.to_host if fd == self.target else self.to_fw).push(data, now)
+            with self.lock:
+                up, down, master = self.to_fw.due(now), self.to_host.due(now), self.master
+            try:
+                if up and self.target is not None:
+                    os.write(self.target, up)
+            except OSError:
+                self._target_gone()
+            try:
+                if down and master is not None:
+                    os.write(master, down)
+            except OSError:
+                pass
+
+    def close(self):
+        self._stop = True
+        self.thread.join(timeout=1)
+        self.vanish()
+        if self.target is not None:
+            os.close(self.target)
