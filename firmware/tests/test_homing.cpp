@@ -41,6 +41,23 @@ TEST_F(Fw, HomingStartingOnTheSwitchBacksOffFirst) {
   EXPECT_EQ(s.faults & RBX1_FAULTS_LATCHING, 0);
 }
 
+TEST_F(Fw, HomingPartOfTheJointsKeepsTheOthers) {
+  ASSERT_EQ(enable(1), RBX1_OK);
+  ASSERT_EQ(set_position({100, 200, 300, 400, 500, 600}), RBX1_OK);  // all six declared
+  sim::board().switches[1] = {true, 200 - 150, true};                 // joint 2's switch 150 steps below
+  ASSERT_EQ(config_set(1, RBX1_KEY_HOME_POSITION, -7), RBX1_OK);
+  EXPECT_EQ(home(1u << 1), RBX1_OK);
+  rbx1_status_resp s = status();
+  EXPECT_EQ(s.homed, 0x3F & ~(1u << 1)) << "the joint being homed is not homed until it is";
+  EXPECT_EQ(move({100, 200, 300, 400, 500, 600}), RBX1_BUSY);
+  run_until_idle(20000);
+  s = status();
+  EXPECT_EQ(s.homed, 0x3F);
+  EXPECT_EQ(s.position[1], -7);
+  for (int j : {0, 2, 3, 4, 5}) EXPECT_EQ(s.position[j], 100 * (j + 1)) << "joint " << j + 1 << " kept its position";
+  EXPECT_EQ(move({100, -7, 300, 400, 500, 600}), RBX1_OK);
+}
+
 TEST_F(Fw, HomingWithoutSwitchFails) {
   ASSERT_EQ(enable(1), RBX1_OK);
   ASSERT_EQ(config_set(1, RBX1_KEY_SOFT_MIN, -1000), RBX1_OK);

@@ -121,6 +121,20 @@ TEST_F(Fw, UnknownTypeIsNakedAndWrongLengthAnswered) {
   EXPECT_EQ(sim::board().pulses[0], 0u);
 }
 
+TEST_F(Fw, HelloLastSeqNamesARefusedRequestButNotAnEstop) {
+  rbx1_move_req q{};
+  uint8_t p[RBX1_MOVE_REQ_LEN];
+  Reply r = exchange(encode(77, RBX1_MSG_MOVE, p, rbx1_move_req_pack(&q, p)));  // refused: drivers disabled
+  ASSERT_TRUE(r.got);
+  EXPECT_EQ(r.payload[0], RBX1_DISABLED);
+  ASSERT_TRUE(exchange(encode(90, RBX1_MSG_ESTOP, nullptr, 0)).got);  // ESTOPs are not remembered
+  uint8_t v = RBX1_PROTO_VERSION;
+  r = exchange(encode(78, RBX1_MSG_HELLO, &v, 1));
+  rbx1_hello_resp h{};
+  ASSERT_EQ(rbx1_hello_resp_unpack(&h, r.payload.data(), (uint8_t)r.payload.size()), RBX1_OK);
+  EXPECT_EQ(h.last_seq, 77);
+}
+
 TEST_F(Fw, PartialFrameTimesOut) {
   ready();
   std::vector<uint8_t> p = move_payload({100, 0, 0, 0, 0, 0});

@@ -178,6 +178,20 @@ TEST_F(Fw, HeartbeatLossStopsUnderControlAndLatches) {
   EXPECT_EQ(sim::board().pulses[0], n);
 }
 
+TEST_F(Fw, SilenceInFaultAddsNoHeartbeatLost) {
+  ready();
+  ASSERT_EQ(move({60000, 0, 0, 0, 0, 0}), RBX1_OK);
+  run_ms(100);
+  ASSERT_EQ(simple(RBX1_MSG_ESTOP), RBX1_OK);
+  run_ms(3000);  // three heartbeats of silence in FAULT
+  rbx1_status_resp s = status();
+  EXPECT_EQ(s.state, RBX1_STATE_FAULT);
+  EXPECT_EQ(s.faults & RBX1_FAULTS_LATCHING, RBX1_FAULT_ESTOP_COMMAND);
+  EXPECT_EQ(simple(RBX1_MSG_CLEAR_FAULT), RBX1_OK);
+  run_ms(3000);  // and in IDLE
+  EXPECT_EQ(status().faults & RBX1_FAULTS_LATCHING, 0);
+}
+
 TEST_F(Fw, StopDeceleratesFlushesAndGoesIdle) {
   ready();
   ASSERT_EQ(move({60000, 0, 0, 0, 0, 0}), RBX1_OK);
