@@ -31,6 +31,7 @@ bench: host firmware
 	@tools/bench/perception-speed
 	@tools/bench/perception-accuracy
 	@tools/bench/daemon-latency
+	@tools/bench/console-live
 
 fuzz: deps
 	@protocol/fuzz/run $(FUZZ_SECONDS)

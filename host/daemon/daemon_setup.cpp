@@ -25,6 +25,7 @@ bool load_config(const std::string& file, const Overrides& overrides, Config& ou
   link::parse_link_config(top.section("link"), out.link);
   gpio::parse_gpio_config(top.section("gpio"), out.gpio);
   parse_daemon_config(top.section("daemon"), out.daemon);
+  console::parse_console_config(top.section("console"), out.console);
   top.reject_unknown();  // a misspelt table name must not pass silently
 
   if (!overrides.port.empty()) out.link.port = overrides.port;

@@ -4,6 +4,7 @@
 
 #include "arm_config.hpp"
 #include "config.hpp"
+#include "console_config.hpp"
 #include "daemon_config.hpp"
 #include "frame_source.hpp"
 #include "gpio.hpp"
@@ -19,6 +20,7 @@ struct Config {
   link::LinkConfig link;
   gpio::GpioConfig gpio;
   DaemonConfig daemon;
+  console::ConsoleConfig console;
 };
 
 // Command-line and environment overrides, applied after the file (documented in README.md).

@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 
 #include "draw.hpp"
+#include "locked_source.hpp"
 
 #include "joint_steps.hpp"
 #include "pick_plan.hpp"
@@ -87,8 +88,9 @@ void Machine::set_led(bool ready) {
 Machine::~Machine() { stop(); }
 
 int Machine::start(std::string& error) {
-  camera_ = camera::open_source(config_.camera, error);
-  if (!camera_) return -ENOENT;
+  auto source = camera::open_source(config_.camera, error);
+  if (!source) return -ENOENT;
+  camera_ = std::make_unique<camera::LockedSource>(std::move(source));
   vision_ = vision::Vision::create(config_.vision, error);
   if (!vision_) return -EINVAL;
   spdlog::info("camera: {}", camera_->describe());
@@ -558,6 +560,7 @@ bool Machine::capture_and_detect(Reply& reply, nlohmann::json& detections, std::
     if (written) ev["annotated"] = config_.daemon.annotate;
     else spdlog::warn("annotate: {}: cannot write the annotated image {}", config_.daemon.annotate, aerr);
   }
+  if (on_scan_) on_scan_(vision::annotate(processed, det, vision_->calibrated()), detections);  // before the event
   reply.event("detected", ev);
   return true;
 }

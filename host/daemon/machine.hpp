@@ -40,6 +40,11 @@ class Machine {
   void stop();
   // Called (server thread) when a shutdown request arrives, after its reply.
   void on_shutdown(std::function<void()> f) { on_shutdown_ = std::move(f); }
+  // The web console's hooks (set before start()): each scan's annotated image (Figure 20) and detection JSON
+  // (worker thread), and the camera, whose reads are serialised with the jobs' (valid after start()).
+  using ScanHook = std::function<void(const cv::Mat& annotated, const nlohmann::json& detections)>;
+  void on_scan(ScanHook f) { on_scan_ = std::move(f); }
+  camera::FrameSource* camera() { return camera_.get(); }
 
  private:
   struct Job {
@@ -94,6 +99,7 @@ class Machine {
   std::string last_estop_;          // source of the last e-stop
   std::atomic<bool> abort_{false};
   std::function<void()> on_shutdown_;
+  ScanHook on_scan_;
   std::string abort_reason_ = "aborted";
   std::atomic<int64_t> job_deadline_ns_{0};  // steady clock; a job running past it is aborted ("timeout")
 };

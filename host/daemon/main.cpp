@@ -1,4 +1,5 @@
 // main.cpp - rbx1d: reads the config, prepares the arm, serves the control socket until shutdown or a signal.
+#include <atomic>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -7,6 +8,7 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include "console.hpp"
 #include "daemon_setup.hpp"
 #include "machine.hpp"
 #include "server.hpp"
@@ -75,9 +77,33 @@ int main(int argc, char** argv) {
   limits.idle_timeout_ms = int(config.daemon.idle_timeout_s * 1000);
   server.set_limits(limits);
   rbx1::daemon::Machine machine(config);
+  std::atomic<rbx1::console::Console*> console_ptr{nullptr};
+  machine.on_scan([&console_ptr](const cv::Mat& annotated, const nlohmann::json& detections) {
+    if (auto* c = console_ptr.load()) c->scan_done(annotated, detections);
+  });
   if (machine.start(error) < 0) {
     spdlog::error("{}", error);
     return 1;
+  }
+  // The web console: a client of the same handler as the socket.
+  std::unique_ptr<rbx1::console::Console> console;
+  if (config.console.enabled) {
+    nlohmann::json places = nlohmann::json::array();
+    for (const auto& [name, place] : config.arm.places) places.push_back(name);
+    console = std::make_unique<rbx1::console::Console>(
+        config.console,
+        [&machine](const rbx1::daemon::Request& r, std::shared_ptr<rbx1::daemon::Reply> reply) {
+          machine.handle(r, std::move(reply));
+        },
+        machine.camera(), config.daemon.job_timeout_s, nlohmann::json{{"places", places}});
+    if (console->start(error) < 0) {
+      spdlog::error("{}", error);
+      machine.stop();
+      return 1;
+    }
+    console_ptr = console.get();
+    spdlog::info("console: listening on {}{}", console->url(),
+                 config.console.token.empty() ? " (no token: loopback only)" : " (token required)");
   }
   g_server = &server;
   std::signal(SIGTERM, on_signal);
@@ -89,7 +115,9 @@ int main(int argc, char** argv) {
     machine.handle(r, std::move(reply));
   });
   spdlog::info("shutting down");
-  machine.stop();
+  machine.stop();  // ends running jobs, so the console's waiting requests get their replies
+  console_ptr = nullptr;
+  if (console) console->stop();
   g_server = nullptr;
   return 0;
 }

@@ -148,6 +148,8 @@ class Daemon:
         self.socket = str(tmp / "rbx1d.sock")
         cfg = json.loads(json.dumps(cfg))  # deep copy
         cfg.setdefault("daemon", {})["socket"] = self.socket
+        # The web console on a free port (tests run side by side); console_url() reads it from the log.
+        cfg.setdefault("console", {}).setdefault("bind", "127.0.0.1:0")
         self.config = write_config(tmp, cfg)
         self.log_path = tmp / "rbx1d.log"
         self.log = open(self.log_path, "w")
@@ -175,6 +177,17 @@ class Daemon:
 
     def request(self, req, timeout=120, on_event=None):
         return request(self.socket, req, timeout, on_event)
+
+    def console_url(self, timeout=10):
+        """The web console's address, from the daemon's "console: listening on URL" log line."""
+        deadline = time.monotonic() + timeout
+        while True:
+            for line in self.log_path.read_text().splitlines():
+                if "console: listening on " in line:
+                    return line.split("console: listening on ", 1)[1].split()[0]
+            if time.monotonic() > deadline:
+                raise AssertionError(f"rbx1d logged no console address:\n{self.log_path.read_text()[-3000:]}")
+            time.sleep(0.05)
 
     def stop(self):
         if self.proc.poll() is None:

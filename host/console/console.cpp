@@ -1,0 +1,347 @@
+// console.cpp - the web console's HTTP routes: token rule, JSON requests through the socket's handler, event
+// stream, pictures, static page.
+#include "console.hpp"
+
+#include <atomic>
+#include <condition_variable>
+#include <cstring>
+#include <mutex>
+#include <thread>
+
+#include <httplib.h>
+#include <spdlog/spdlog.h>
+
+#include "access.hpp"
+#include "event_hub.hpp"
+#include "live_view.hpp"
+#include "request.hpp"
+#include "www_files.hpp"
+
+namespace rbx1::console {
+
+namespace {
+constexpr int kThreads = 32;     // HTTP worker threads
+constexpr int kMaxStreams = 24;  // event and live streams at once: the rest of the pool stays free for requests
+constexpr auto kStreamPoll = std::chrono::milliseconds(1000);
+
+using json = nlohmann::json;
+
+json error_json(const std::string& code, const std::string& message) {
+  return {{"error", {{"code", code}, {"message", message}}}};
+}
+
+void send_json(httplib::Response& res, int status, const json& body) {
+  res.status = status;
+  res.set_content(body.dump(-1, ' ', false, json::error_handler_t::replace), "application/json");
+}
+
+// Errors of the request itself (HTTP 400), as the socket's parse_request gives them.
+bool is_request_error(const std::string& code) {
+  return code == "bad_json" || code == "bad_request" || code == "unknown_command" || code == "missing_field" ||
+         code == "bad_field" || code == "line_too_long";
+}
+
+int http_status_for(const json& final_line) {
+  if (final_line.contains("result")) return 200;
+  std::string code = final_line["error"].value("code", "");
+  if (is_request_error(code)) return 400;
+  if (code == "shutting_down") return 503;
+  return 409;  // the arm could not do it now (busy, not_ready, estop, object_absent, ...)
+}
+
+// One request's lines, collected until its final line.
+struct Exchange {
+  std::mutex mutex;
+  std::condition_variable cv;
+  json events = json::array();
+  json final_line;
+  bool done = false;
+};
+
+// Counts open streams; refuses beyond kMaxStreams.
+class StreamSlot {
+ public:
+  explicit StreamSlot(std::atomic<int>& count) : count_(count) { ok_ = ++count_ <= kMaxStreams; }
+  ~StreamSlot() { --count_; }
+  bool ok() const { return ok_; }
+
+ private:
+  std::atomic<int>& count_;
+  bool ok_;
+};
+}  // namespace
+
+struct Console::Impl {
+  ConsoleConfig config;
+  Submit submit;
+  double job_timeout_s;
+  httplib::Server http;
+  EventHub hub;
+  LiveView live;
+  std::thread thread;
+  std::atomic<int> streams{0};
+  std::atomic<uint64_t> next_request{1};
+  int port = 0;
+  json info;
+
+  Impl(ConsoleConfig c, Submit s, camera::FrameSource* camera, double timeout)
+      : config(std::move(c)), submit(std::move(s)), job_timeout_s(timeout), live(camera, config.live_fps, config.jpeg_quality) {}
+
+  // The token rule and, for POST, the cross-site guard. false after writing the refusal.
+  bool allowed(const httplib::Request& req, httplib::Response& res, Kind kind) {
+    if (token_required(kind, !config.token.empty(), config.loopback)) {
+      std::string given = presented_token(req.get_header_value("Authorization"), req.get_param_value("token"));
+      if (given.empty()) {
+        send_json(res, 401, error_json("unauthorized", "this request needs the console token (Authorization: Bearer TOKEN)"));
+        return false;
+      }
+      if (!token_matches(config.token, given)) {
+        send_json(res, 401, error_json("unauthorized", "wrong console token"));
+        return false;
+      }
+    }
+    if (req.method == "POST") {
+      // A JSON body and a same-origin page: another site's form or script cannot drive the arm through a browser.
+      if (req.get_header_value("Content-Type").rfind("application/json", 0) != 0) {
+        send_json(res, 415, error_json("bad_request", "the body must be JSON (Content-Type: application/json)"));
+        return false;
+      }
+      std::string origin = req.get_header_value("Origin");
+      if (!origin.empty() && origin != "http://" + req.get_header_value("Host")) {
+        send_json(res, 403, error_json("bad_origin", "requests from another site's page (" + origin.substr(0, 80) + ") are refused"));
+        return false;
+      }
+    }
+    return true;
+  }
+
+  // The socket's request layer: the same parse_request, the same handler, one Reply whose lines come here.
+  void run_request(const std::string& line, httplib::Response& res) {
+    daemon::Request request;
+    daemon::Error err;
+    if (!daemon::parse_request(line, request, err)) {
+      send_json(res, 400, error_json(err.code, err.message));
+      return;
+    }
+    if (request.command == daemon::Command::Shutdown) {
+      send_json(res, 403, error_json("not_allowed", "shutdown is not available from the console (rbx1 shutdown)"));
+      return;
+    }
+    const bool logged = request.command != daemon::Command::Status;  // the page polls status: keep it out of the log
+    const uint64_t id = next_request++;
+    const std::string cmd = daemon::command_name(request.command);
+    if (logged) {
+      spdlog::info("console: request {}", daemon::request_json(request).dump());
+      hub.publish({{"req", id}, {"cmd", cmd}, {"request", daemon::request_json(request)}});
+    }
+    auto ex = std::make_shared<Exchange>();
+    // Called with the reply's lock held: only stores and publishes, never waits.
+    daemon::Reply::Sink sink = [this, ex, id, cmd, logged](const std::string& line, bool final_line) {
+      json l = json::parse(line, nullptr, false);
+      if (logged) {
+        json e = l;
+        e["req"] = id;
+        e["cmd"] = cmd;
+        hub.publish(std::move(e));
+      }
+      std::lock_guard lock(ex->mutex);
+      if (final_line) {
+        ex->final_line = l;
+        ex->done = true;
+        ex->cv.notify_all();
+      } else {
+        ex->events.push_back(l);
+      }
+    };
+    submit(request, std::make_shared<daemon::Reply>(sink, request.command));
+    std::unique_lock lock(ex->mutex);
+    auto limit = std::chrono::duration<double>(job_timeout_s + 30);
+    if (!ex->cv.wait_for(lock, limit, [&] { return ex->done; })) {
+      send_json(res, 504, error_json("timeout", "no final reply within " + std::to_string(int(job_timeout_s + 30)) +
+                                                    " s; the job goes on (see the event log)"));
+      return;
+    }
+    json body = ex->final_line;
+    body["events"] = ex->events;
+    send_json(res, http_status_for(ex->final_line), body);
+  }
+
+  void routes() {
+    http.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
+      std::string what = "internal error";
+      try {
+        std::rethrow_exception(ep);
+      } catch (const std::exception& e) {
+        what = e.what();
+      } catch (...) {
+      }
+      send_json(res, 500, error_json("internal", what));
+    });
+    http.set_error_handler(httplib::Server::HandlerWithResponse([](const httplib::Request& req, httplib::Response& res) {
+      if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
+      if (res.status == 404) send_json(res, 404, error_json("not_found", "no such page or endpoint: " + req.path.substr(0, 80)));
+      else if (res.status == 413) send_json(res, 413, error_json("line_too_long", "request body longer than " + std::to_string(daemon::kMaxRequestLine) + " bytes"));
+      else send_json(res, res.status, error_json("bad_request", "HTTP " + std::to_string(res.status)));
+      return httplib::Server::HandlerResponse::Handled;
+    }));
+
+    for (size_t i = 0; i < kWwwFileCount; ++i) {
+      const WwwFile& f = kWwwFiles[i];
+      http.Get(f.path, [&f](const httplib::Request&, httplib::Response& res) {
+        res.set_header("Cache-Control", "no-cache");
+        res.set_content(reinterpret_cast<const char*>(f.data), f.size, f.type);
+      });
+    }
+    http.Get("/", [](const httplib::Request&, httplib::Response& res) { res.set_redirect("/index.html"); });
+
+    http.Get("/api/status", [this](const httplib::Request& req, httplib::Response& res) {
+      if (allowed(req, res, Kind::Read)) run_request(R"({"cmd":"status"})", res);
+    });
+    http.Post(R"(/api/([a-z_]{1,40}))", [this](const httplib::Request& req, httplib::Response& res) {
+      std::string cmd = req.matches[1];
+      if (!allowed(req, res, cmd == "estop" ? Kind::Estop : Kind::Act)) return;
+      json body = req.body.empty() ? json::object() : json::parse(req.body, nullptr, false);
+      if (body.is_discarded()) return send_json(res, 400, error_json("bad_json", "request body is not valid JSON"));
+      if (!body.is_object()) return send_json(res, 400, error_json("bad_request", "request body must be a JSON object"));
+      if (body.contains("cmd")) return send_json(res, 400, error_json("bad_field", "\"cmd\" comes from the URL, not the body"));
+      body["cmd"] = cmd;
+      run_request(body.dump(), res);
+    });
+
+    http.Get("/api/info", [this](const httplib::Request& req, httplib::Response& res) {
+      if (allowed(req, res, Kind::Read)) send_json(res, 200, info);
+    });
+    http.Get("/api/scan", [this](const httplib::Request& req, httplib::Response& res) {
+      if (!allowed(req, res, Kind::Read)) return;
+      send_json(res, 200, {{"scans", live.scan_count()}, {"detections", live.scan_detections()}});
+    });
+    http.Get(R"(/api/scan\.(jpg|png))", [this](const httplib::Request& req, httplib::Response& res) {
+      if (!allowed(req, res, Kind::Read)) return;
+      res.set_header("Cache-Control", "no-store");
+      if (req.matches[1] == "png") {
+        std::string png;
+        if (!live.scan_png(png)) return send_json(res, 404, error_json("no_scan", "no scan yet: run a scan first"));
+        return res.set_content(png, "image/png");
+      }
+      Jpeg jpeg;
+      if (!live.scan_jpeg(jpeg)) return send_json(res, 404, error_json("no_scan", "no scan yet: run a scan first"));
+      res.set_content(*jpeg, "image/jpeg");
+    });
+    http.Get("/api/frame.jpg", [this](const httplib::Request& req, httplib::Response& res) {
+      if (!allowed(req, res, Kind::Read)) return;
+      Jpeg jpeg;
+      std::string error;
+      if (!live.grab_once(jpeg, error)) return send_json(res, 503, error_json("camera_failed", error));
+      res.set_header("Cache-Control", "no-store");
+      res.set_content(*jpeg, "image/jpeg");
+    });
+    http.Get("/api/live/stats", [this](const httplib::Request& req, httplib::Response& res) {
+      if (!allowed(req, res, Kind::Read)) return;
+      LiveStats s = live.stats();
+      send_json(res, 200, {{"frames", s.frames}, {"grab_cpu_ns", s.grab_cpu_ns}, {"encode_cpu_ns", s.encode_cpu_ns},
+                           {"failures", s.failures}, {"viewers", s.viewers}, {"streams", streams.load()},
+                           {"live_fps", config.live_fps}});
+    });
+    http.Get("/api/live.mjpg", [this](const httplib::Request& req, httplib::Response& res) {
+      if (!allowed(req, res, Kind::Read)) return;
+      auto slot = std::make_shared<StreamSlot>(streams);
+      if (!slot->ok()) return send_json(res, 503, error_json("too_many_streams", "too many live views and event streams open"));
+      auto viewer = std::make_shared<LiveView::Viewer>(live);
+      res.set_header("Cache-Control", "no-store");
+      res.set_chunked_content_provider(
+          "multipart/x-mixed-replace; boundary=rbx1frame",
+          [this, slot, viewer](size_t, httplib::DataSink& sink) {
+            Jpeg jpeg;
+            if (!viewer->next(jpeg, kStreamPoll)) {
+              if (hub.closed()) {
+                sink.done();
+                return true;
+              }
+              return sink.is_writable();
+            }
+            std::string head = "--rbx1frame\r\nContent-Type: image/jpeg\r\nContent-Length: " +
+                               std::to_string(jpeg->size()) + "\r\n\r\n";
+            return sink.write(head.data(), head.size()) && sink.write(jpeg->data(), jpeg->size()) &&
+                   sink.write("\r\n", 2);
+          });
+    });
+    http.Get("/api/events", [this](const httplib::Request& req, httplib::Response& res) {
+      if (!allowed(req, res, Kind::Read)) return;
+      auto slot = std::make_shared<StreamSlot>(streams);
+      if (!slot->ok()) return send_json(res, 503, error_json("too_many_streams", "too many live views and event streams open"));
+      uint64_t after = 0;
+      std::string last = req.get_header_value("Last-Event-ID");
+      if (last.empty()) last = req.get_param_value("after");
+      if (!last.empty() && last.size() < 20 && last.find_first_not_of("0123456789") == std::string::npos)
+        after = std::stoull(last);
+      auto cursor = std::make_shared<uint64_t>(after);
+      res.set_header("Cache-Control", "no-store");
+      res.set_chunked_content_provider("text/event-stream", [this, slot, cursor](size_t, httplib::DataSink& sink) {
+        auto events = hub.wait(*cursor, kStreamPoll);
+        if (hub.closed()) {
+          sink.done();
+          return true;
+        }
+        std::string out;
+        for (const auto& e : events) {
+          out += "id: " + std::to_string(e.seq) + "\ndata: " + e.data + "\n\n";
+          *cursor = e.seq;
+        }
+        if (out.empty()) out = ": keep-alive\n\n";  // also finds a client that went away
+        return sink.write(out.data(), out.size());
+      });
+    });
+  }
+};
+
+Console::Console(ConsoleConfig config, Submit submit, camera::FrameSource* camera, double job_timeout_s,
+                 nlohmann::json info)
+    : impl_(std::make_unique<Impl>(std::move(config), std::move(submit), camera, job_timeout_s)) {
+  impl_->info = std::move(info);
+}
+
+Console::~Console() { stop(); }
+
+int Console::start(std::string& error) {
+  Impl& m = *impl_;
+  m.http.new_task_queue = [] { return new httplib::ThreadPool(kThreads); };
+  m.http.set_payload_max_length(daemon::kMaxRequestLine);
+  m.http.set_keep_alive_timeout(5);
+  m.routes();
+  std::string host = m.config.host == "localhost" ? "127.0.0.1" : m.config.host;
+  if (m.config.port == 0) {
+    m.port = m.http.bind_to_any_port(host);
+  } else {
+    m.port = m.http.bind_to_port(host, m.config.port) ? m.config.port : -1;
+  }
+  if (m.port <= 0) {
+    int e = errno ? errno : EADDRINUSE;
+    error = "console: cannot listen on " + m.config.bind + ": " + std::strerror(e);
+    return -e;
+  }
+  m.thread = std::thread([&m] { m.http.listen_after_bind(); });
+  return 0;
+}
+
+void Console::stop() {
+  Impl& m = *impl_;
+  m.hub.close();  // ends the event and live streams
+  m.live.stop();
+  m.http.stop();
+  if (m.thread.joinable()) m.thread.join();
+}
+
+int Console::port() const { return impl_->port; }
+
+std::string Console::url() const {
+  const auto& c = impl_->config;
+  std::string host = c.host.find(':') != std::string::npos ? "[" + c.host + "]" : c.host;
+  return "http://" + host + ":" + std::to_string(impl_->port) + "/";
+}
+
+void Console::scan_done(const cv::Mat& annotated, const nlohmann::json& detections) {
+  impl_->live.set_scan(annotated, detections);
+  impl_->hub.publish({{"scan", impl_->live.scan_count()}, {"objects", detections.value("objects", json::array()).size()}});
+}
+
+}  // namespace rbx1::console

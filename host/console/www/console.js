@@ -1,0 +1,236 @@
+// console.js - the RBX1 web console's behaviour: requests to rbx1d's /api, the event stream, the pictures.
+'use strict';
+
+const $ = (id) => document.getElementById(id);
+const state = { token: localStorage.getItem('rbx1.token') || '', detections: null, selected: null,
+                events: null, statusBusy: false, lastScan: -1 };
+
+// ---- requests -----------------------------------------------------------------------------------------------
+function headers(json) {
+  const h = json ? { 'Content-Type': 'application/json' } : {};
+  if (state.token) h.Authorization = 'Bearer ' + state.token;
+  return h;
+}
+function withToken(url) {
+  return state.token ? url + (url.includes('?') ? '&' : '?') + 'token=' + encodeURIComponent(state.token) : url;
+}
+function say(text, kind) {
+  const m = $('message');
+  m.textContent = text;
+  m.className = kind || '';
+}
+// POST /api/CMD with body; resolves to the daemon's final line ({result} or {error}) with its events.
+async function call(cmd, body) {
+  let reply;
+  try {
+    const r = await fetch('/api/' + cmd, { method: 'POST', headers: headers(true), body: JSON.stringify(body || {}) });
+    reply = await r.json();
+  } catch (e) {
+    reply = { error: { code: 'unreachable', message: 'rbx1d did not answer: ' + e } };
+  }
+  if (reply.error && reply.error.code === 'estop' && cmd !== 'estop') return reply;  // the e-stop's own line stays
+  if (reply.error) say(cmd + ': ' + reply.error.code + ': ' + reply.error.message, 'error');
+  else say(cmd + ': done', 'ok');
+  return reply;
+}
+// Buttons that start a request are disabled until its reply (the e-stop never is).
+function action(id, fn) {
+  $(id).addEventListener('click', async () => {
+    const b = $(id);
+    b.disabled = true;
+    try { await fn(); } finally { b.disabled = false; }
+  });
+}
+
+// ---- e-stop: its own request, never queued behind the others ------------------------------------------------
+async function estop() {
+  say('E-STOP sent…', 'error');
+  const r = await call('estop');
+  if (r.result) say('E-STOP latched' + (r.result.aborted_job ? ' (job aborted)' : '') + ': clear the fault to go on', 'error');
+}
+$('estop').addEventListener('click', estop);
+document.addEventListener('keydown', (e) => {
+  const typing = e.target.tagName === 'INPUT';
+  if (e.key === 'Escape' || (e.key === ' ' && !typing)) { e.preventDefault(); estop(); }
+});
+
+// ---- arm state ----------------------------------------------------------------------------------------------
+function fmt(v) {
+  if (v === null || v === undefined) return '–';
+  if (Array.isArray(v)) return v.map(fmt).join(', ');
+  if (typeof v === 'object') return Object.entries(v).map(([k, x]) => k + ' ' + fmt(x)).join(', ');
+  return String(v);
+}
+function showStatus(s) {
+  const fw = s.firmware || {};
+  const faulted = fw.state === 'FAULT' || (fw.faults && fw.faults.length);
+  const badge = $('state');
+  badge.textContent = s.ready ? 'ready' : faulted ? 'fault' : 'not ready';
+  badge.className = 'badge ' + (s.ready ? 'ok' : 'bad');
+  $('job').textContent = s.job ? 'job: ' + s.job : '';
+  $('job').className = 'badge quiet' + (s.job ? ' busy' : '');
+  const rows = [['firmware', fw.state], ['faults', fw.faults], ['homed', fw.homed], ['joints (°)', s.joints_deg],
+                ['position (steps)', fw.position], ['gripper (µs)', fw.gripper_us],
+                ['link', s.link && (s.link.connected ? 'up ' : 'down ') + (s.link.port || '') + (s.link.error ? ' – ' + s.link.error : '')],
+                ['last e-stop', s.last_estop], ['camera', s.camera]];
+  const body = $('arm-state').tBodies[0];
+  body.replaceChildren(...rows.map(([k, v]) => {
+    const tr = document.createElement('tr');
+    tr.innerHTML = '<td></td><td></td>';
+    tr.cells[0].textContent = k;
+    tr.cells[1].textContent = fmt(v);
+    if (k === 'faults' && v && v.length) tr.cells[1].className = 'bad';
+    return tr;
+  }));
+}
+async function pollStatus() {
+  if (state.statusBusy) return;
+  state.statusBusy = true;
+  try {
+    const r = await fetch('/api/status', { headers: headers(false) });
+    const j = await r.json();
+    if (j.result) showStatus(j.result);
+    else { $('state').textContent = j.error.code; $('state').className = 'badge bad'; }
+  } catch (e) {
+    $('state').textContent = 'rbx1d unreachable';
+    $('state').className = 'badge bad';
+  } finally {
+    state.statusBusy = false;
+  }
+}
+
+// ---- pictures and the objects (Figure 20, Figure 21) --------------------------------------------------------
+function viewMode() { return document.querySelector('input[name=viewmode]:checked').value; }
+function showView() {
+  const img = $('view');
+  if (viewMode() === 'live') img.src = withToken('/api/live.mjpg');
+  else if (state.lastScan > 0) img.src = withToken('/api/scan.jpg?n=' + state.lastScan);
+  else img.removeAttribute('src');
+}
+document.querySelectorAll('input[name=viewmode]').forEach((r) => r.addEventListener('change', showView));
+
+function num(v, digits) { return v === null || v === undefined ? '–' : Number(v).toFixed(digits); }
+function showObjects() {
+  const objs = (state.detections && state.detections.objects) || [];
+  const body = $('objects').tBodies[0];
+  body.replaceChildren(...objs.map((o) => {
+    const tr = document.createElement('tr');
+    tr.dataset.index = o.index;
+    const g = o.grip || {};
+    const cells = [o.index, o.label || 'unknown', num(o.match_score, 2),
+                   o.centroid_cm ? num(o.centroid_cm[0], 2) + ', ' + num(o.centroid_cm[1], 2) : '–',
+                   num(g.opening_cm, 2), num(g.angle_deg, 2), g.feasible ? 'ok' : (g.reason || 'not pickable')];
+    for (const c of cells) {
+      const td = document.createElement('td');
+      td.textContent = c;
+      tr.appendChild(td);
+    }
+    if (!g.feasible) tr.lastChild.className = 'bad';
+    if (state.selected === o.index) tr.className = 'selected';
+    tr.addEventListener('click', () => select(o.index));
+    return tr;
+  }));
+  $('scan-info').textContent = objs.length + ' found';
+}
+function select(index) {
+  state.selected = index;
+  const o = ((state.detections && state.detections.objects) || []).find((x) => x.index === index);
+  if (o && o.label) $('pick-name').value = o.label;
+  showObjects();
+  document.dispatchEvent(new CustomEvent('rbx1-select', { detail: o }));
+}
+async function loadScan() {
+  try {
+    const r = await fetch('/api/scan', { headers: headers(false) });
+    const j = await r.json();
+    if (j.error) return;
+    state.lastScan = j.scans;
+    state.detections = j.detections;
+    showObjects();
+    if (viewMode() === 'scan') showView();
+  } catch (e) { /* the status badge says when rbx1d is away */ }
+}
+// A click on the scan picks the object whose centre is nearest (in image pixels).
+$('view').addEventListener('click', (e) => {
+  if (viewMode() !== 'scan' || !state.detections) return;
+  const img = e.target;
+  const x = (e.offsetX * img.naturalWidth) / img.clientWidth;
+  const y = (e.offsetY * img.naturalHeight) / img.clientHeight;
+  let best = null;
+  for (const o of state.detections.objects) {
+    const d = Math.hypot(o.centroid_px[0] - x, o.centroid_px[1] - y);
+    if (!best || d < best.d) best = { d, o };
+  }
+  if (best) select(best.o.index);
+});
+
+// ---- the event log (server-sent events) ---------------------------------------------------------------------
+function summary(e) {
+  if (e.request) return 'request ' + JSON.stringify(e.request);
+  if (e.result !== undefined) return 'result ' + JSON.stringify(e.result).slice(0, 300);
+  if (e.error) return 'error ' + e.error.code + ': ' + e.error.message;
+  if (e.scan !== undefined) return 'scan #' + e.scan + ': ' + e.objects + ' objects';
+  const skip = new Set(['ts', 't_ms', 'event', 'req', 'cmd', 'seq', 'detections', 'report']);
+  const rest = Object.entries(e).filter(([k]) => !skip.has(k)).map(([k, v]) => k + '=' + JSON.stringify(v));
+  return e.event + ' ' + rest.join(' ').slice(0, 300);
+}
+function logEvent(e) {
+  const li = document.createElement('li');
+  li.value = e.seq;
+  li.dataset.event = e.event || (e.result !== undefined ? 'result' : e.error ? 'error' : e.request ? 'request' : 'scan');
+  li.dataset.cmd = e.cmd || '';
+  li.className = li.dataset.event;
+  const when = e.ts ? e.ts.slice(11, 23) + ' ' : '';
+  li.textContent = when + (e.cmd ? '[' + e.cmd + ' #' + e.req + '] ' : '') + summary(e);
+  const log = $('log');
+  const atEnd = log.scrollTop + log.clientHeight >= log.scrollHeight - 4;
+  log.appendChild(li);
+  while (log.children.length > 500) log.firstChild.remove();
+  if (atEnd) log.scrollTop = log.scrollHeight;
+}
+function connectEvents() {
+  if (state.events) state.events.close();
+  state.events = new EventSource(withToken('/api/events'));
+  state.events.onmessage = (m) => {
+    const e = JSON.parse(m.data);
+    logEvent(e);
+    if (e.scan !== undefined) loadScan();
+    if (e.result !== undefined || e.error || e.event === 'estop') pollStatus();
+  };
+}
+$('log-clear').addEventListener('click', () => $('log').replaceChildren());
+
+// ---- buttons ------------------------------------------------------------------------------------------------
+action('scan', () => call('scan'));
+action('home', () => call('home'));
+action('clear-fault', () => call('clear_fault'));
+action('pick', () => {
+  const name = $('pick-name').value.trim();
+  const place = $('pick-place').value.trim();
+  if (!name || !place) return say('pick: choose an object (click it) and a place', 'error');
+  return call('pick', { name, place });
+});
+
+$('token').value = state.token;
+$('token').addEventListener('change', () => {
+  state.token = $('token').value.trim();
+  localStorage.setItem('rbx1.token', state.token);
+  connectEvents();
+  showView();
+  loadScan();
+  pollStatus();
+});
+
+async function loadInfo() {
+  try {
+    const r = await fetch('/api/info', { headers: headers(false) });
+    const j = await r.json();
+    $('places').replaceChildren(...(j.places || []).map((p) => Object.assign(document.createElement('option'), { value: p })));
+  } catch (e) { /* optional */ }
+}
+
+connectEvents();
+loadInfo();
+loadScan();
+pollStatus();
+setInterval(pollStatus, 1000);
