@@ -49,6 +49,19 @@ int http_status_for(const json& final_line) {
   return 409;  // the arm could not do it now (busy, not_ready, estop, object_absent, ...)
 }
 
+// The commands the request layer knows, of those the page has controls for: the page shows the operator's
+// panels only when the daemon takes their requests.
+json known_commands() {
+  json out = json::array();
+  for (const char* name : {"status", "scan", "pick", "home", "estop", "clear_fault", "jog", "pose_save", "place_save",
+                           "background", "teach", "calibrate_workspace"}) {
+    daemon::Request r;
+    daemon::Error e;
+    if (daemon::parse_request(json{{"cmd", name}}.dump(), r, e) || e.code != "unknown_command") out.push_back(name);
+  }
+  return out;
+}
+
 // One request's lines, collected until its final line.
 struct Exchange {
   std::mutex mutex;
@@ -298,6 +311,7 @@ Console::Console(ConsoleConfig config, Submit submit, camera::FrameSource* camer
                  nlohmann::json info)
     : impl_(std::make_unique<Impl>(std::move(config), std::move(submit), camera, job_timeout_s)) {
   impl_->info = std::move(info);
+  impl_->info["commands"] = known_commands();
 }
 
 Console::~Console() { stop(); }

@@ -4,6 +4,7 @@
 
 #include <httplib.h>
 
+#include <algorithm>
 #include <thread>
 
 #include "access.hpp"
@@ -264,7 +265,10 @@ TEST(ConsoleHttp, PageImagesAndEvents) {
   r = f.client->Get("/api/frame.jpg");
   ASSERT_EQ(r->status, 200);
   EXPECT_GT(r->body.size(), 1000u);
-  EXPECT_EQ(body(f.client->Get("/api/info"))["places"][0], "tray");
+  json info = body(f.client->Get("/api/info"));
+  EXPECT_EQ(info["places"][0], "tray");
+  for (const char* c : {"scan", "pick", "home", "estop", "clear_fault"})  // the socket's commands, seen by the page
+    EXPECT_NE(std::find(info["commands"].begin(), info["commands"].end(), c), info["commands"].end()) << c << " " << info.dump();
   // The event stream replays what is kept: the scan, then a pick's request, event and result in order.
   ASSERT_EQ(f.post("/api/pick", R"({"name":"star","place":"tray"})")->status, 200);
   std::string stream;

@@ -221,11 +221,45 @@ $('token').addEventListener('change', () => {
   pollStatus();
 });
 
+// ---- operator commands (shown when the daemon knows them) -----------------------------------------------------
+function jogJoint(sign) {
+  return call('jog', { joint: Number($('jog-joint').value), deg: sign * Number($('jog-deg').value) });
+}
+action('jog-minus', () => jogJoint(-1));
+action('jog-plus', () => jogJoint(1));
+document.querySelectorAll('button.jog-mm').forEach((b) => b.addEventListener('click', async () => {
+  const mm = [0, 0, 0];
+  mm[Number(b.dataset.axis)] = Number(b.dataset.sign) * Number($('jog-mm').value);
+  b.disabled = true;
+  try { await call('jog', { mm }); } finally { b.disabled = false; }
+}));
+action('pose-save', () => call('pose_save', { name: 'scan' }));
+action('place-save', () => call('place_save', { name: $('place-name').value.trim() }).then(loadInfo));
+action('background', () => call('background'));
+action('teach', () => {
+  if (!state.selected) return say('teach: click the object in the scan first', 'error');
+  return call('teach', { index: state.selected, name: $('teach-name').value.trim() });
+});
+async function calib(body) {
+  const r = await call('calibrate_workspace', body);
+  $('calib-out').textContent = JSON.stringify(r.result !== undefined ? r.result : r.error, null, 1);
+  return r;
+}
+action('calib-start', () => calib({ action: 'start' }));
+action('calib-record', () => calib({ action: 'record', marker: Number($('calib-marker').value) }));
+action('calib-fit', () => calib({ action: 'fit' }));
+action('calib-save', () => calib({ action: 'save' }));
+action('calib-cancel', () => calib({ action: 'cancel' }));
+
 async function loadInfo() {
   try {
     const r = await fetch('/api/info', { headers: headers(false) });
     const j = await r.json();
     $('places').replaceChildren(...(j.places || []).map((p) => Object.assign(document.createElement('option'), { value: p })));
+    const has = new Set(j.commands || []);
+    $('jog-panel').hidden = !has.has('jog');
+    $('teach-panel').hidden = !(has.has('pose_save') || has.has('place_save') || has.has('background') || has.has('teach'));
+    $('calib-panel').hidden = !has.has('calibrate_workspace');
   } catch (e) { /* optional */ }
 }
 
