@@ -128,6 +128,7 @@ def test_pick_from_the_page(rig, browser):
     last_done = len(names) - 1 - names[::-1].index("step_done")
     assert names.index("planned") < last_done < names.index("result"), names
     assert f'"picked":"{target}"' in pick[-1][1], pick[-1][1]
+    wait(browser, lambda b: b.find_element(By.ID, "message").text == "pick: done", 20, "the page's pick request never ended")
     browser.save_screenshot(str(SHOTS / "2-pick-done.png"))
     # The firmware executed the plan, and the arm is home (the page's state table says so too).
     assert len(sim.moves()) > moves_before
