@@ -30,6 +30,7 @@ bench: host firmware
 	@tools/bench/firmware
 	@tools/bench/perception-speed
 	@tools/bench/perception-accuracy
+	@tools/bench/perception-corpus
 	@tools/bench/daemon-latency
 	@tools/bench/console-live
 

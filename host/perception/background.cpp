@@ -11,16 +11,23 @@ namespace rbx1::vision {
 namespace {
 
 // Median and MAD-based sigma of gray - background (values within +-255), on a sparse grid for speed.
-void robust_stats(const cv::Mat& g, const cv::Mat& bg, int step, double& median, double& sigma) {
+// window > 0: only differences within +-window count (the table, when objects may cover most of the frame).
+void robust_stats(const cv::Mat& g, const cv::Mat& bg, int step, double& median, double& sigma, int window = 0) {
   std::array<int, 512> hist{};
   int n = 0;
   for (int y = step / 2; y < g.rows; y += step) {
     const uchar* gr = g.ptr<uchar>(y);
     const uchar* br = bg.ptr<uchar>(y);
     for (int x = step / 2; x < g.cols; x += step) {
-      hist[size_t(gr[x] - br[x] + 256)]++;
+      const int d = gr[x] - br[x];
+      if (window > 0 && std::abs(d) > window) continue;
+      hist[size_t(d + 256)]++;
       ++n;
     }
+  }
+  if (n == 0) {
+    median = 0, sigma = 1;
+    return;
   }
   auto quantile = [&](const std::array<int, 512>& h, int total) {
     int acc = 0;
@@ -70,8 +77,8 @@ bool average_background(const std::vector<cv::Mat>& frames, cv::Mat& out, std::s
 
 LightFit compensate_light(const cv::Mat& gray, const cv::Mat& bg, cv::Mat* corrected) {
   CV_Assert(gray.type() == CV_8U && bg.type() == CV_8U && gray.size() == bg.size());
-  // Samples on a grid of about 20 000 points, skipping saturated pixels (their ratio says nothing).
-  const int step = std::max(1, int(std::sqrt(double(gray.total()) / 20000.0)));
+  // Samples on a grid of about 6 000 points, skipping saturated pixels (their ratio says nothing).
+  const int step = std::max(1, int(std::sqrt(double(gray.total()) / 6000.0)));
   std::vector<float> b, g;
   for (int y = step / 2; y < gray.rows; y += step) {
     const uchar* gr = gray.ptr<uchar>(y);
@@ -84,7 +91,7 @@ LightFit compensate_light(const cv::Mat& gray, const cv::Mat& bg, cv::Mat* corre
   if (n < 50) return fit;
   std::vector<char> use(n, 1);
   std::vector<float> res(n);
-  for (int iter = 0; iter < 6; ++iter) {
+  for (int iter = 0; iter < 4; ++iter) {
     double sb = 0, sg = 0, sbb = 0, sbg = 0, m = 0;
     for (size_t i = 0; i < n; ++i)
       if (use[i]) sb += b[i], sg += g[i], sbb += double(b[i]) * b[i], sbg += double(b[i]) * g[i], m += 1;
@@ -121,7 +128,11 @@ LightFit compensate_light(const cv::Mat& gray, const cv::Mat& bg, cv::Mat* corre
 
 cv::Mat Contrast::contrast(cv::Rect roi, int s) const {
   cv::Mat out;
-  if (s > 0) cv::subtract(gray(roi), background(roi), out, cv::noArray(), CV_16S);
+  if (s == 0) {  // an object of both polarities: the absolute difference
+    cv::Mat d;
+    cv::absdiff(gray(roi), background(roi), d);
+    d.convertTo(out, CV_16S);
+  } else if (s > 0) cv::subtract(gray(roi), background(roi), out, cv::noArray(), CV_16S);
   else cv::subtract(background(roi), gray(roi), out, cv::noArray(), CV_16S);
   return out;
 }
@@ -152,32 +163,15 @@ bool contrast_from_background(const cv::Mat& gray, const cv::Mat& background_gra
 
 namespace {
 
-// The global model: Otsu splits the low-resolution frame in two classes; the larger is the table. A quadratic
-// surface fitted to the table class (least squares, two rounds dropping outliers) is the background when the
-// histogram is clearly bimodal and the table fits it within a small fraction of the classes' separation.
-bool global_background(const cv::Mat& small, cv::Mat& surface) {
-  cv::Mat cls;
-  double t = cv::threshold(small, cls, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
-  cv::Scalar mean_all, sd_all;
-  cv::meanStdDev(small, mean_all, sd_all);
-  int n_hi = cv::countNonZero(cls), n = int(small.total()), n_lo = n - n_hi;
-  if (n_hi == 0 || n_lo == 0 || sd_all[0] < 4) return false;
-  double m_hi = cv::mean(small, cls)[0], m_lo = cv::mean(small, ~cls)[0];
-  double w_hi = double(n_hi) / n, w_lo = double(n_lo) / n;
-  double between = w_hi * w_lo * (m_hi - m_lo) * (m_hi - m_lo), total = sd_all[0] * sd_all[0];
-  if (between < 0.75 * total) return false;  // not bimodal enough
-  cv::Mat table = n_hi >= n_lo ? cls : ~cls;
-  const double sep = std::abs(m_hi - m_lo);
-  (void)t;
-  // Quadratic surface in normalised coordinates.
+// Quadratic surface fitted to the pixels of `cls` (least squares, a second round without the outliers); its
+// robust residual spread in `resid`. false when too few pixels.
+bool fit_surface(const cv::Mat& small, const cv::Mat& cls, cv::Mat& coef, double& resid) {
   auto basis = [&](int x, int y, double* b) {
     double u = 2.0 * x / std::max(1, small.cols - 1) - 1, v = 2.0 * y / std::max(1, small.rows - 1) - 1;
     b[0] = 1, b[1] = u, b[2] = v, b[3] = u * u, b[4] = u * v, b[5] = v * v;
   };
-  cv::Mat coef;
-  cv::Mat use = table.clone();
-  cv::erode(use, use, cv::Mat(), cv::Point(-1, -1), 1);  // away from the objects' blurred edges
-  double resid_sigma = 0;
+  cv::Mat use;
+  cv::erode(cls, use, cv::Mat(), cv::Point(-1, -1), 1);  // away from the objects' blurred edges
   for (int round = 0; round < 2; ++round) {
     cv::Mat A(0, 6, CV_64F), B(0, 1, CV_64F);
     for (int y = 0; y < small.rows; ++y)
@@ -188,29 +182,50 @@ bool global_background(const cv::Mat& small, cv::Mat& surface) {
         A.push_back(cv::Mat(1, 6, CV_64F, b));
         B.push_back(double(small.at<uchar>(y, x)));
       }
-    if (A.rows < 30) return false;
-    if (!cv::solve(A, B, coef, cv::DECOMP_SVD)) return false;
+    if (A.rows < 30 || !cv::solve(A, B, coef, cv::DECOMP_SVD)) return false;
     cv::Mat r = cv::abs(A * coef - B);
     std::vector<double> rv(r.begin<double>(), r.end<double>());
     std::nth_element(rv.begin(), rv.begin() + long(rv.size() / 2), rv.end());
-    resid_sigma = 1.4826 * rv[rv.size() / 2];
-    // Second round: only the table pixels that fit (drops a shadow or a pattern patch).
-    int i = 0;
+    resid = 1.4826 * rv[rv.size() / 2];
+    int i = 0;  // second round: only the pixels that fit (drops a shadow or a pattern patch)
     for (int y = 0; y < small.rows; ++y)
-      for (int x = 0; x < small.cols; ++x) {
-        if (!use.at<uchar>(y, x)) continue;
-        if (r.at<double>(i++) > 3 * resid_sigma + 2) use.at<uchar>(y, x) = 0;
-      }
+      for (int x = 0; x < small.cols; ++x)
+        if (use.at<uchar>(y, x) && r.at<double>(i++) > 3 * resid + 2) use.at<uchar>(y, x) = 0;
   }
-  if (resid_sigma > std::max(3.0, sep / 10)) return false;  // uneven or patterned: the local model
+  return true;
+}
+
+// The global model: Otsu splits the low-resolution frame in two classes. Either class covering at least 30 %
+// of the frame may be the table; the one a smooth (quadratic) surface fits best is (a light box in a dark
+// frame, a tray more than half covered). That surface is the background when the histogram is clearly bimodal
+// and the table fits it within an eighth of the classes' separation.
+bool global_background(const cv::Mat& small, cv::Mat& surface, double& sep_out) {
+  cv::Mat hi;
+  cv::threshold(small, hi, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
+  cv::Scalar mean_all, sd_all;
+  cv::meanStdDev(small, mean_all, sd_all);
+  int n_hi = cv::countNonZero(hi), n = int(small.total()), n_lo = n - n_hi;
+  if (n_hi == 0 || n_lo == 0 || sd_all[0] < 4) return false;
+  double m_hi = cv::mean(small, hi)[0], m_lo = cv::mean(small, ~hi)[0];
+  double w_hi = double(n_hi) / n, w_lo = double(n_lo) / n;
+  double between = w_hi * w_lo * (m_hi - m_lo) * (m_hi - m_lo), total = sd_all[0] * sd_all[0];
+  if (between < 0.75 * total) return false;  // not bimodal enough
+  const double sep = std::abs(m_hi - m_lo);
+  sep_out = sep;
+  cv::Mat coef, best;
+  double best_resid = 1e300;
+  for (const cv::Mat& cls : {hi, cv::Mat(~hi)}) {
+    double resid = 0;
+    if (double(cv::countNonZero(cls)) < 0.3 * n || !fit_surface(small, cls, coef, resid)) continue;
+    if (resid < best_resid) best_resid = resid, best = coef.clone();
+  }
+  if (best.empty() || best_resid > std::max(3.0, sep / 8)) return false;  // uneven or patterned: local model
   surface.create(small.size(), CV_32F);
   for (int y = 0; y < small.rows; ++y)
     for (int x = 0; x < small.cols; ++x) {
-      double b[6];
-      basis(x, y, b);
-      double v = 0;
-      for (int k = 0; k < 6; ++k) v += b[k] * coef.at<double>(k);
-      surface.at<float>(y, x) = float(v);
+      double u = 2.0 * x / std::max(1, small.cols - 1) - 1, v = 2.0 * y / std::max(1, small.rows - 1) - 1;
+      const double* c = best.ptr<double>();
+      surface.at<float>(y, x) = float(c[0] + c[1] * u + c[2] * v + c[3] * u * u + c[4] * u * v + c[5] * v * v);
     }
   return true;
 }
@@ -224,7 +239,8 @@ void contrast_auto(const cv::Mat& gray, Polarity objects, double min_contrast, C
   cv::resize(gray, small, cv::Size((gray.cols + f - 1) / f, (gray.rows + f - 1) / f), 0, 0, cv::INTER_AREA);
   cv::Mat bsmall;
   int sign = objects == Polarity::Auto ? 0 : sign_of(objects);
-  out.global_model = global_background(small, bsmall);
+  double sep = 0;
+  out.global_model = global_background(small, bsmall, sep);
   if (!out.global_model) {
     int k = std::max(3, (std::min(small.cols, small.rows) / 3) | 1);
     k = std::min(k, 255);
@@ -266,7 +282,8 @@ void contrast_auto(const cv::Mat& gray, Polarity objects, double min_contrast, C
   out.gray = gray;
   out.background = b8;
   double median = 0;
-  robust_stats(gray, b8, 4, median, out.noise_sigma);
+  // With the global model the objects may cover most of the frame: the noise is measured on the table only.
+  robust_stats(gray, b8, 4, median, out.noise_sigma, out.global_model ? std::max(8, int(sep / 2)) : 0);
   out.sign = sign;
 }
 

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 
 #include <opencv2/imgproc.hpp>
 
@@ -68,39 +69,91 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign,
   if (!layer.pieces.empty()) layer.outer = layer.pieces.front().second;
 }
 
-// Both polarities: a region attached (within 2 px) to an object of the other polarity that has fringe_ratio
-// times its contrast is that object's shadow or glare (a white ball's shadow on a grey table): not an object,
-// and no obstacle for the fingers.
-void drop_fringes(const IsolationOptions& opt, Isolation& out) {
+// Both polarities: a region whose surroundings (a 3 px ring) are mostly an object of the other polarity is a
+// detail of that object (the dark relief on a light coin); a region attached to an object of the other
+// polarity with fringe_ratio times its contrast is that object's shadow or glare (a white ball's shadow on a
+// grey table). Neither is an object, nor an obstacle for the fingers.
+// Then two regions of opposite polarity sharing a long boundary (at least 15 % of the smaller one's ring) are
+// one object of two colours (a lighter's pink body and metal cap): merged, its layer on |frame - background|.
+void drop_fringes(const Contrast& con, const IsolationOptions& opt, Isolation& out) {
   std::vector<double> level(out.sign.size(), 0);
   for (const Layer& l : out.layers) level[size_t(l.label)] = l.level;
-  std::vector<char> fringe(out.layers.size(), 0);
+  std::vector<char> drop(out.layers.size(), 0);
+  std::vector<std::vector<int>> partner(out.layers.size());
   const cv::Rect frame(0, 0, out.labels.cols, out.labels.rows);
   for (size_t i = 0; i < out.layers.size(); ++i) {
     const Layer& l = out.layers[i];
-    cv::Rect r = cv::Rect(l.roi.x - 2, l.roi.y - 2, l.roi.width + 4, l.roi.height + 4) & frame;
-    cv::Mat own = out.labels(r) == l.label, near;
-    cv::dilate(own, near, cv::Mat(), cv::Point(-1, -1), 2);
-    cv::Mat lab = out.labels(r);
-    for (int y = 0; y < r.height && !fringe[i]; ++y) {
+    cv::Rect r = cv::Rect(l.roi.x - 3, l.roi.y - 3, l.roi.width + 6, l.roi.height + 6) & frame;
+    cv::Mat lab = out.labels(r), own = lab == l.label, ring;
+    cv::dilate(own, ring, cv::Mat(), cv::Point(-1, -1), 3);
+    ring &= ~own;
+    int n_ring = 0, n_other = 0;
+    double strongest = 0;
+    std::map<int, int> shared;  // opposite-polarity label -> ring pixels
+    for (int y = 0; y < r.height; ++y) {
       const int* lr = lab.ptr<int>(y);
-      const uchar* nr = near.ptr<uchar>(y);
+      const uchar* rr = ring.ptr<uchar>(y);
       for (int x = 0; x < r.width; ++x) {
+        if (!rr[x]) continue;
+        ++n_ring;
         int o = lr[x];
-        if (!nr[x] || o <= 0 || out.sign[size_t(o)] == l.sign) continue;
-        if (level[size_t(o)] >= opt.fringe_ratio * l.level) {
-          fringe[i] = 1;
-          break;
-        }
+        if (o <= 0 || out.sign[size_t(o)] == l.sign) continue;
+        ++n_other;
+        ++shared[o];
+        strongest = std::max(strongest, level[size_t(o)]);
       }
     }
+    drop[i] = n_other >= 0.4 * n_ring || (n_other > 0 && strongest >= opt.fringe_ratio * l.level);
+    for (auto [o, n] : shared)
+      if (n >= 0.15 * n_ring) partner[i].push_back(o);
+  }
+  // Merge the two-colour objects (union-find over layer indices, by label).
+  std::map<int, size_t> index_of;
+  for (size_t i = 0; i < out.layers.size(); ++i) index_of[out.layers[i].label] = i;
+  std::vector<size_t> root(out.layers.size());
+  for (size_t i = 0; i < root.size(); ++i) root[i] = i;
+  auto find = [&](size_t i) {
+    while (root[i] != i) i = root[i] = root[root[i]];
+    return i;
+  };
+  for (size_t i = 0; i < out.layers.size(); ++i) {
+    if (drop[i]) continue;
+    for (int o : partner[i]) {
+      auto it = index_of.find(o);
+      if (it == index_of.end() || drop[it->second]) continue;
+      size_t a = find(i), b = find(it->second);
+      if (a != b) root[std::max(a, b)] = std::min(a, b);
+    }
+  }
+  const cv::Rect frame_all(0, 0, out.labels.cols, out.labels.rows);
+  for (size_t i = 0; i < out.layers.size(); ++i) {
+    if (drop[i] || find(i) != i) continue;
+    std::vector<size_t> members;
+    for (size_t j = 0; j < out.layers.size(); ++j)
+      if (!drop[j] && find(j) == i) members.push_back(j);
+    if (members.size() < 2) continue;
+    const int label = out.layers[i].label;
+    cv::Rect box = out.layers[i].roi;
+    for (size_t j : members) {
+      if (j == i) continue;
+      const Layer& m = out.layers[j];
+      cv::Mat lab = out.labels(m.roi);
+      lab.setTo(label, lab == m.label);
+      out.obstacle[size_t(m.label)] = 0;
+      box |= m.roi;
+      drop[j] = 2;  // merged into i
+    }
+    Layer merged;
+    make_layer(con, out.labels, label, 0, box & frame_all, out.threshold, merged);
+    merged.pieces.clear();
+    out.layers[i] = std::move(merged);
   }
   std::vector<Layer> kept;
   for (size_t i = 0; i < out.layers.size(); ++i) {
-    if (fringe[i]) {
+    if (drop[i] == 1) {
       ++out.fringes;
       out.obstacle[size_t(out.layers[i].label)] = 0;
-    } else {
+    } else if (!drop[i]) {
       kept.push_back(std::move(out.layers[i]));
     }
   }
@@ -124,11 +177,17 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
   for (int sg : signs) {
     cv::Mat bin = con.above(out.threshold, sg), lab, st, cen;
     cv::morphologyEx(bin, bin, cv::MORPH_OPEN, cv::Mat());  // cleaning: isolated noise pixels and hairlines
-    fg_pixels += cv::countNonZero(bin);
+    const int on = cv::countNonZero(bin);
+    if (on == 0) continue;  // nothing of this polarity (the usual case for one of the two)
+    fg_pixels += on;
     int n = cv::connectedComponentsWithStats(bin, lab, st, cen, 8, CV_32S);
     const int offset = int(out.sign.size()) - 1;
-    if (offset > 0) cv::add(lab, cv::Scalar(offset), lab, bin);
-    out.labels += lab;
+    if (offset == 0) {
+      out.labels = lab;
+    } else {
+      cv::add(lab, cv::Scalar(offset), lab, bin);
+      out.labels += lab;
+    }
     for (int i = 1; i < n; ++i) {
       stats.push_back(st.row(i));
       out.sign.push_back(int8_t(sg));
@@ -226,7 +285,7 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
       if (cv::countNonZero(piece.inside) >= opt.min_area_px) out.layers.push_back(std::move(piece));
     }
   }
-  if (signs.size() == 2) drop_fringes(opt, out);
+  if (signs.size() == 2) drop_fringes(con, opt, out);
   // Detection order: by rows of the top edge, then left to right (split pieces included).
   std::stable_sort(out.layers.begin(), out.layers.end(), [](const Layer& a, const Layer& b) {
     return a.roi.y != b.roi.y ? a.roi.y < b.roi.y : a.roi.x < b.roi.x;

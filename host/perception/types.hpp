@@ -19,7 +19,7 @@ struct Layer {
   std::vector<cv::Point> outer;  // outer boundary pixels of inside (largest piece), roi coordinates
   std::vector<std::pair<double, std::vector<cv::Point>>> pieces;  // isolation only: pieces by area
   bool touching = false;  // cut from a region it shared with a touching neighbour
-  int sign = -1;          // -1: darker than the background, +1: lighter
+  int sign = -1;          // -1: darker than the background, +1: lighter, 0: both (a two-colour object)
   double level = 0;       // median contrast of the object (grey levels)
 };
 

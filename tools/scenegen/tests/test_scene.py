@@ -145,3 +145,30 @@ def test_box_precheck_never_contradicts_the_exact_gap():
         b = shapes.place(shapes.polygon_cm(str(rng.choice(names))), 40, rng.uniform(-180, 180), rng.uniform(0, 300, 2))
         if layout.boxes_apart(a, b, 14.0):
             assert layout.gap(a, b) >= 14.0
+
+
+def test_mixed_polarity_scenes_have_dark_and_light_objects_on_mid_grey():
+    spec = scene.SceneSpec(p_mixed=1.0, min_objects=6, max_objects=6, p_touching=0, p_near=0)
+    image, background, doc = scene.render_scene(np.random.default_rng(3), spec, shapes.class_names()[:6])
+    assert doc["polarity"] == "mixed"
+    assert 110 <= doc["table"]["level"] <= 140
+    g = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY).astype(float)
+    signs = set()
+    for o in doc["objects"]:
+        x, y = (int(round(v)) for v in o["centroid_px"])
+        if cv2.pointPolygonTest(np.array(o["polygon_px"], np.float32), (x, y), True) > 3:
+            signs.add(np.sign(g[y, x] - doc["table"]["level"]))
+    assert signs == {-1.0, 1.0}
+
+
+def test_light_drift_changes_the_scene_against_its_background():
+    spec = scene.SceneSpec(light_drift=0.2, p_shadow=0)
+    image, background, doc = scene.render_scene(np.random.default_rng(5), spec, [], empty=True)
+    d = doc["light_drift"]
+    assert 0.8 <= d["gain"] <= 1.2 and -10 <= d["offset"] <= 10
+    g, b = (cv2.cvtColor(x, cv2.COLOR_BGR2GRAY).astype(float) for x in (image, background))
+    ok = (b > 20) & (b < 200)
+    assert np.median(g[ok] - (d["gain"] * b[ok] + d["offset"])) == pytest.approx(0, abs=1.0)
+    # Off by default: the benchmark's default scenes are unchanged.
+    _, _, doc0 = scene.render_scene(np.random.default_rng(5), scene.SceneSpec(), [], empty=True)
+    assert doc0["light_drift"] is None
