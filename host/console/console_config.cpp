@@ -37,20 +37,35 @@ bool is_loopback_host(const std::string& host) {
   return inet_pton(AF_INET, host.c_str(), &a) == 1 && (ntohl(a.s_addr) >> 24) == 127;
 }
 
+namespace {
+// The bind address and the token rule; errors name bind_key and "console.token".
+void set_bind(const std::string& bind, const std::string& bind_key, ConsoleConfig& out, config::Errors& errors) {
+  out.bind = bind;
+  std::string error;
+  if (!parse_bind(out.bind, out.host, out.port, error)) {
+    errors.add(bind_key, error);
+    return;
+  }
+  out.loopback = is_loopback_host(out.host);
+  if (out.enabled && !out.loopback && out.token.empty())
+    errors.add("console.token", "must be set when the console listens beyond loopback (" + bind_key + " \"" + out.bind +
+                                    "\"): anybody on that network could move the arm");
+}
+}  // namespace
+
+void override_console_bind(const std::string& bind, ConsoleConfig& out, config::Errors& errors) {
+  set_bind(bind, "--console", out, errors);
+}
+
 void parse_console_config(config::Section s, ConsoleConfig& out) {
   out.enabled = s.boolean("enabled", out.enabled);
-  out.bind = s.string("bind", out.bind);
-  std::string error;
-  if (!parse_bind(out.bind, out.host, out.port, error)) s.errors().add(s.path() + ".bind", error);
-  out.loopback = is_loopback_host(out.host);
+  std::string bind = s.string("bind", out.bind);
   out.token = s.string("token", out.token);
   bool printable = true;
   for (unsigned char c : out.token) printable = printable && c > 0x20 && c < 0x7f;
   if (!out.token.empty() && (out.token.size() < 16 || out.token.size() > 200 || !printable))
     s.errors().add(s.path() + ".token", "must be 16..200 printable characters without spaces (e.g. from `openssl rand -hex 16`)");
-  if (out.enabled && error.empty() && !out.loopback && out.token.empty())
-    s.errors().add(s.path() + ".token", "must be set when console.bind is not a loopback address (\"" + out.bind +
-                                            "\"): anybody on that network could move the arm");
+  set_bind(bind, s.path() + ".bind", out, s.errors());
   out.live_fps = s.number("live_fps", out.live_fps, 0.5, 60);
   out.jpeg_quality = int(s.integer("jpeg_quality", out.jpeg_quality, 10, 100));
   s.reject_unknown();

@@ -27,5 +27,7 @@ bool is_loopback_host(const std::string& host);
 
 // Reads the [console] table; errors name the key (console.token when a non-loopback bind has no token).
 void parse_console_config(config::Section console, ConsoleConfig& out);
+// rbx1d --console BIND: replaces the file's bind, with the same checks (errors name "--console" or console.token).
+void override_console_bind(const std::string& bind, ConsoleConfig& out, config::Errors& errors);
 
 }  // namespace rbx1::console

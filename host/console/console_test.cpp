@@ -45,12 +45,27 @@ TEST(ConsoleConfig, NonLoopbackNeedsToken) {
   rbx1::config::Errors errors;
   parse("[console]\nbind = \"0.0.0.0:8080\"\n", errors);
   ASSERT_EQ(errors.messages().size(), 1u) << errors_text(errors);
-  EXPECT_NE(errors.messages()[0].find("console.token: must be set when console.bind is not a loopback address"),
+  EXPECT_NE(errors.messages()[0].find("console.token: must be set when the console listens beyond loopback (console.bind \"0.0.0.0:8080\")"),
             std::string::npos) << errors_text(errors);
   rbx1::config::Errors ok;
   ConsoleConfig c = parse("[console]\nbind = \"0.0.0.0:8080\"\ntoken = \"0123456789abcdef\"\n", ok);
   EXPECT_TRUE(ok.ok()) << errors_text(ok);
   EXPECT_FALSE(c.loopback);
+  // --console replaces the file's bind with the same checks.
+  rbx1::config::Errors over;
+  ConsoleConfig d = parse("", over);
+  override_console_bind("192.168.1.5:8080", d, over);
+  ASSERT_EQ(over.messages().size(), 1u) << errors_text(over);
+  EXPECT_EQ(over.messages()[0].rfind("console.token: must be set when the console listens beyond loopback (--console", 0), 0u)
+      << errors_text(over);
+  rbx1::config::Errors bad;
+  override_console_bind("nowhere", d, bad);
+  ASSERT_EQ(bad.messages().size(), 1u);
+  EXPECT_EQ(bad.messages()[0].rfind("--console: must be \"HOST:PORT\"", 0), 0u) << errors_text(bad);
+  rbx1::config::Errors fine;
+  override_console_bind("127.0.0.1:0", d, fine);
+  EXPECT_TRUE(fine.ok());
+  EXPECT_EQ(d.port, 0);
 }
 
 TEST(ConsoleConfig, BadValuesNameTheirKey) {

@@ -31,6 +31,7 @@ bool load_config(const std::string& file, const Overrides& overrides, Config& ou
   if (!overrides.port.empty()) out.link.port = overrides.port;
   if (!overrides.socket.empty()) out.daemon.socket = overrides.socket;
   if (!overrides.annotate.empty()) out.daemon.annotate = overrides.annotate;
+  if (!overrides.console.empty()) console::override_console_bind(overrides.console, out.console, errors);
   if (out.link.port.empty()) errors.add("link.port", "must be set (in the file, with --port, or $RBX1_PORT)");
   // The start button runs a configured pick: a button that would do nothing, or a pick to a place the arm does
   // not know, is a mistake in the file, not something to discover when the button is pressed.

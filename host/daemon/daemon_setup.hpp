@@ -28,6 +28,7 @@ struct Overrides {
   std::string port;      // --port or $RBX1_PORT: [link] port
   std::string socket;    // --socket: [daemon] socket
   std::string annotate;  // --annotate: [daemon] annotate
+  std::string console;   // --console: [console] bind
 };
 
 // Reads and validates file; relative paths in it ([camera] device, [vision] files) are taken relative to the

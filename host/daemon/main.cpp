@@ -36,6 +36,7 @@ int main(int argc, char** argv) {
   app.add_option("--port", overrides.port, "serial port, overriding [link] port (also $RBX1_PORT)");
   app.add_option("--socket", overrides.socket, "control socket path, overriding [daemon] socket");
   app.add_option("--annotate", overrides.annotate, "write each scan's annotated image here ([daemon] annotate)");
+  app.add_option("--console", overrides.console, "web console HOST:PORT, overriding [console] bind (port 0: any free)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -5,6 +5,7 @@ requests (token, malformed) move nothing. One browser and one daemon for the who
 build/e2e/console/."""
 import json
 import os
+import subprocess
 import time
 import urllib.error
 import urllib.request
@@ -210,3 +211,21 @@ def test_bad_requests_move_nothing(rig):
     # Reading state on loopback needs no token; the daemon is still up.
     code, body = http(api + "status")
     assert code == 200 and body["result"]["ready"], body
+
+
+def test_console_config_errors(tmp_path):
+    """A console beyond loopback without a token is refused before anything starts, from the file or --console."""
+    rbx1d = e2e.need(e2e.BIN / "rbx1d")
+    cfg = e2e.absolutize(e2e.load_default_config())
+    cfg["console"] = {"bind": "0.0.0.0:8080"}
+    r = subprocess.run([rbx1d, "--config", e2e.write_config(tmp_path, cfg), "--check-config"], capture_output=True,
+                       text=True, timeout=30)
+    assert r.returncode == 2, r
+    assert 'console.token: must be set when the console listens beyond loopback (console.bind "0.0.0.0:8080")' \
+        in r.stderr, r.stderr
+    r = subprocess.run([rbx1d, "--config", e2e.DATA / "rbx1.toml", "--console", "192.168.1.5:80", "--check-config"],
+                       capture_output=True, text=True, timeout=30)
+    assert r.returncode == 2 and "console.token: must be set" in r.stderr and "--console" in r.stderr, r.stderr
+    r = subprocess.run([rbx1d, "--config", e2e.DATA / "rbx1.toml", "--console", "8080", "--check-config"],
+                       capture_output=True, text=True, timeout=30)
+    assert r.returncode == 2 and '--console: must be "HOST:PORT"' in r.stderr, r.stderr

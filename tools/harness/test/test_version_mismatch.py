@@ -74,7 +74,7 @@ def test_harness_names_both_versions_and_the_fix(firmware):
 def test_daemon_names_both_versions_and_the_fix(firmware, tmp_path):
     sock = str(tmp_path / "rbx1d.sock")
     daemon = subprocess.Popen([os.path.join(BIN, "rbx1d"), "--config", os.path.join(SRC, "data", "rbx1.toml"),
-                               "--port", firmware.port, "--socket", sock],
+                               "--port", firmware.port, "--socket", sock, "--console", "127.0.0.1:0"],
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
         link = {}
