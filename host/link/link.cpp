@@ -91,12 +91,21 @@ int Link::attach(int fd, std::string& error) {
   return r;
 }
 
+// A Mega that the open reset (DTR) or that was just plugged in sits in its stk500v2 bootloader for 0.83 s; a byte
+// arriving then (our HELLO) keeps it there until 5.2 s pass without one (measured: tools/flashsim/README.md).
+// So after an unanswered HELLO exchange the link keeps quiet this long before asking again; repeating HELLO
+// would hold the board in its bootloader forever.
+constexpr auto kBootloaderQuiet = std::chrono::milliseconds(6000);
+
 int Link::handshake(std::string& error) {
   rbx1_hello_resp h{};
   auto deadline = Clock::now() + std::chrono::milliseconds(boot_wait_ms_.load());
   int r = hello(h);
   while (r == -ETIMEDOUT && Clock::now() < deadline) {
-    spdlog::info("{}: no HELLO answer yet; waiting for the board to boot", name_);
+    auto quiet = std::min<Clock::duration>(kBootloaderQuiet, deadline - Clock::now());
+    spdlog::info("{}: no HELLO answer yet; quiet for {} ms so a board in its bootloader starts the firmware", name_,
+                 std::chrono::duration_cast<std::chrono::milliseconds>(quiet).count());
+    std::this_thread::sleep_for(quiet);
     r = hello(h);
   }
   if (r == -EPROTO) {

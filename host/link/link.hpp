@@ -21,7 +21,8 @@ struct LinkConfig {
   int timeout_ms = 100;    // per transmission (PROTOCOL.md: 100 ms)
   int retries = 5;         // retransmissions before the link is declared down (PROTOCOL.md: 5)
   int heartbeat_ms = 250;  // idle interval between HEARTBEATs; must stay below the firmware's HEARTBEAT_MS
-  int boot_wait_ms = 2500; // keep trying HELLO this long at open: the first open after plug-in resets an Arduino
+  int boot_wait_ms = 8000; // how long open() waits for a board in its bootloader (the first open after plug-in or
+                           // after flashing resets an Arduino): HELLO, 6 s of silence, HELLO again
 };
 void parse_link_config(rbx1::config::Section link, LinkConfig& out);
 
@@ -70,7 +71,7 @@ class Link {
 
   // Per-transmission timeout and retransmission count (defaults from PROTOCOL.md).
   void set_timing(int timeout_ms, int retries);
-  // How long open()/reconnect() keep repeating an unanswered HELLO (a board in its bootloader). Default 2500.
+  // How long open()/reconnect() wait for an unanswered HELLO (a board in its bootloader). Default 8000.
   void set_boot_wait(int ms) { boot_wait_ms_ = ms; }
 
   // Any request by type with a raw payload; resp receives the response payload (status first).

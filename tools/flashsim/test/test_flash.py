@@ -1,8 +1,9 @@
 """test_flash.py - flashing as users do, end to end: `make flash PORT=<pty>` (tools/flash's avrdude command, the
 wiring/stk500v2 programmer) through Debian's Mega 2560 bootloader in rbx1-avrboard, to a blank board and over a
-running firmware; the protocol harness against the flashed firmware; an EEPROM setting across the re-flash; a
-corrupted upload caught by avrdude's verify. Prints the upload times (wall and simulated).
+running firmware; the protocol harness against the flashed firmware; rbx1d ready on a freshly flashed board; an
+EEPROM setting across the re-flash; a corrupted upload caught by avrdude's verify. Prints the upload times (wall and simulated).
 Env: AVRBOARD, RBX1_SOURCE_DIR."""
+import json
 import os
 import re
 import shutil
@@ -20,6 +21,7 @@ from rbx1proto.link import Link  # noqa: E402
 from rbx1proto.messages import MsgType, Status  # noqa: E402
 
 AVRBOARD = os.environ.get("AVRBOARD", os.path.join(SRC, "build", "bin", "rbx1-avrboard"))
+BIN = os.path.dirname(AVRBOARD)
 HEX = os.path.join(SRC, "build", "firmware", "rbx1.hex")
 BOOTLOADER = "/usr/share/arduino/hardware/arduino/avr/bootloaders/stk500v2/stk500boot_v2_mega2560.hex"
 BOOT_START = 0x3E000
@@ -76,7 +78,7 @@ class BoardRun:
         firmware runs. The bootloader takes the first byte it sees in its 0.83 s wait as an upload starting and then
         stays until 5 s pass without a byte, so a host must not talk before (PROTOCOL.md's HELLO would keep it)."""
         since = len(self.events())
-        link = Link(self.port, timeout=0.3, retries=10)
+        link = Link(self.port, timeout=0.3, retries=30)  # patient: a loaded machine slows the simulation
         time.sleep(0.1)  # the board logs the open's reset within a slice of simulated time
         for _ in range(100):
             text = self.events()[since:]
@@ -109,6 +111,34 @@ def config_get(board, joint, key):
         r = link.request(MsgType.CONFIG_GET, joint=joint, key=key)
         assert r["status"] == Status.OK, r
         return r["value"]
+
+
+def daemon_ready_seconds(board):
+    """rbx1d started right after a flash: its open resets the board (avrdude's close dropped DTR), and its
+    handshake must let the bootloader leave (host/link: HELLO, then quiet) before the arm is ready."""
+    since = len(board.events())
+    sock = str(board.log.parent / "rbx1d.sock")
+    t0 = time.monotonic()
+    daemon = subprocess.Popen([os.path.join(BIN, "rbx1d"), "--config", os.path.join(SRC, "data", "rbx1.toml"),
+                               "--port", board.port, "--socket", sock], stdout=subprocess.DEVNULL,
+                              stderr=subprocess.PIPE, text=True)
+    try:
+        status = {}
+        while time.monotonic() - t0 < 40:
+            r = subprocess.run([os.path.join(BIN, "rbx1"), "status", "--json", "--socket", sock], capture_output=True,
+                               text=True, timeout=20)
+            if r.returncode == 0:
+                status = json.loads(r.stdout.strip().splitlines()[-1])["result"]
+                if status["ready"]:
+                    break
+            time.sleep(0.2)
+        ready = time.monotonic() - t0
+        assert status.get("ready"), f"rbx1d not ready after 40 s: {status}"
+    finally:
+        daemon.terminate()
+        daemon.wait(timeout=10)
+    assert "DTR asserted: reset" in board.events()[since:]
+    return ready
 
 
 @pytest.fixture(scope="module")
@@ -162,6 +192,8 @@ def test_reflash_over_running_firmware_keeps_eeprom(board):
     sim = board.upload_seconds(since)
     print(f"\nupload over the running firmware: make flash {wall:.2f} s wall, reset to firmware start {sim:.2f} s "
           f"simulated")
+    ready = daemon_ready_seconds(board)
+    print(f"rbx1d ready on the freshly flashed board after {ready:.1f} s (its open reset the board)")
     assert config_get(board, JOINT, MAX_SPEED) == 1234  # the bootloader never touched the EEPROM
 
 
