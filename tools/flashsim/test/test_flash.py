@@ -120,7 +120,8 @@ def daemon_ready_seconds(board):
     sock = str(board.log.parent / "rbx1d.sock")
     t0 = time.monotonic()
     daemon = subprocess.Popen([os.path.join(BIN, "rbx1d"), "--config", os.path.join(SRC, "data", "rbx1.toml"),
-                               "--port", board.port, "--socket", sock], stdout=subprocess.DEVNULL,
+                               "--port", board.port, "--socket", sock, "--console", "127.0.0.1:0"],
+                              stdout=subprocess.DEVNULL,
                               stderr=subprocess.PIPE, text=True)
     try:
         status = {}
