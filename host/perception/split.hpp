@@ -9,7 +9,8 @@ namespace rbx1::vision {
 
 struct SplitOptions {
   double min_persistence_px = 3;   // a body's peak must stand this far above the neck that joins it...
-  double min_persistence_rel = 0.3;  // ...and this fraction of its own peak (the neck is under 70 % of its width)
+  double min_persistence_rel = 0.3;  // ...and this fraction of its own peak, at least 0.5 (split.cpp: the neck
+                                     // under half the body's width)
   double max_solidity = 0.93;      // regions more convex than this are one object (no neck to cut)
   int min_area_px = 40;            // each body at least this big
 };
