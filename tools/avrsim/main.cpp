@@ -17,13 +17,19 @@
 
 #include <CLI/CLI.hpp>
 
+extern "C" {
+#include "sim_interrupts.h"
+}
+
 #include "board.hpp"
 #include "probes.hpp"
+#include "trace.hpp"
 
 namespace {
 
 using rbx1::avrsim::Board;
 using rbx1::avrsim::Probes;
+using rbx1::avrsim::Trace;
 
 volatile std::sig_atomic_t g_stop = 0;
 void on_signal(int) { g_stop = 1; }
@@ -98,9 +104,40 @@ void write_json(const Probes& probes, const std::string& path) {
   std::rename(tmp.c_str(), path.c_str());  // readers never see half a file
 }
 
+// Drives the e-stop input and tells the probes and the trace about an edge.
+struct Estop {
+  Board* board;
+  Probes* probes;
+  Trace* trace;  // null without --trace
+  bool pending = false;  // a delayed assertion is scheduled
+  long after_step_irq = -1;  // "estop 1 @D": assert D cycles after the step timer's next compare match
+  void set(bool on) {
+    const bool edge = on != board->estop();
+    board->set_estop(on);
+    if (!edge) return;
+    if (on) probes->on_estop_edge(); else probes->on_estop_release();
+    if (trace) trace->estop_edge(on);
+  }
+  // "estop 1 D": assert D cycles from now (random phases against the step interrupt, in the benchmark and tests).
+  static void on_step_irq(avr_irq_t*, uint32_t value, void* param) {
+    auto* e = static_cast<Estop*>(param);
+    if (!value || e->after_step_irq < 0) return;
+    avr_cycle_timer_register(e->board->avr(), static_cast<avr_cycle_count_t>(std::max(1L, e->after_step_irq)),
+                             &Estop::fire, e);
+    e->after_step_irq = -1;
+  }
+  static avr_cycle_count_t fire(avr_t*, avr_cycle_count_t, void* param) {
+    auto* e = static_cast<Estop*>(param);
+    e->pending = false;
+    e->set(true);
+    return 0;
+  }
+};
+
 // Exit without uart_pty_stop(): it joins a reader thread that never returns.
-[[noreturn]] void finish(Board& board, const Probes& probes, const std::string& json_path, int code) {
+[[noreturn]] void finish(Board& board, const Probes& probes, Trace* trace, const std::string& json_path, int code) {
   std::string err;
+  if (trace) trace->flush();
   if (!board.save_eeprom(err)) std::fprintf(stderr, "rbx1-avrsim: %s\n", err.c_str());
   if (!json_path.empty()) write_json(probes, json_path);
   std::fflush(stdout);
@@ -117,8 +154,9 @@ int main(int argc, char** argv) {
   int isr_vector = -1;
   double max_seconds = 0;
   uint32_t uart_baud = 0;
+  std::string trace_path;
   app.add_option("--elf", elf, "firmware ELF")->capture_default_str();
-  app.add_option("--control", control, "control FIFO (estop 0|1, limit J 0|1, reset, stats FILE, quit)");
+  app.add_option("--control", control, "control FIFO (estop 0|1 [DELAY_CYCLES|@CYCLES_AFTER_STEP_IRQ], limit J 0|1, reset, stats FILE, quit)");
   app.add_option("--json", json_path, "write the measurements here on exit");
   app.add_flag("--fast", fast, "run as fast as possible instead of in real time");
   app.add_option("--eeprom", eeprom, "keep the EEPROM in this file across runs");
@@ -126,6 +164,8 @@ int main(int argc, char** argv) {
   app.add_option("--max-seconds", max_seconds, "exit by itself after this many wall-clock seconds (0: never)");
   app.add_option("--uart-baud", uart_baud,
                  "time UART0 bytes at this line rate instead of the firmware's UBRR0 (benchmarks)");
+  app.add_option("--trace", trace_path,
+                 "log every STEP/DIR edge, interrupt entry/exit and I-bit change with its cycle to this file");
   CLI11_PARSE(app, argc, argv);
 
   if (!fast) {
@@ -146,6 +186,20 @@ int main(int argc, char** argv) {
   }
   Probes probes;
   probes.attach(board.avr(), isr_vector);
+  Trace trace_log;
+  Trace* trace = nullptr;
+  if (!trace_path.empty()) {
+    if (!trace_log.open(board.avr(), trace_path, error)) {
+      std::fprintf(stderr, "rbx1-avrsim: %s\n", error.c_str());
+      return 2;
+    }
+    trace = &trace_log;
+  }
+  Estop estop{&board, &probes, trace};
+  // The step timer's compare match raises TIMER1_COMPA (vector 17 on the ATmega2560).
+  for (int i = 0; i < board.avr()->interrupts.vector_count; i++)
+    if (board.avr()->interrupts.vector[i]->vector == 17)
+      avr_irq_register_notify(board.avr()->interrupts.vector[i]->irq + AVR_INT_IRQ_PENDING, &Estop::on_step_irq, &estop);
 
   struct sigaction sa {};
   sa.sa_handler = on_signal;
@@ -171,11 +225,12 @@ int main(int argc, char** argv) {
     const avr_cycle_count_t until = avr->cycle + slice;
     while (avr->cycle < until) {
       int state = avr_run(avr);
+      if (trace) trace->after_instruction();
       if (state == cpu_Done || state == cpu_Crashed) {
         std::fprintf(stderr, "rbx1-avrsim: the firmware %s at pc 0x%x, cycle %llu\n",
                      state == cpu_Crashed ? "crashed" : "stopped", avr->pc,
                      static_cast<unsigned long long>(avr->cycle));
-        finish(board, probes, json_path, 1);
+        finish(board, probes, trace, json_path, 1);
       }
     }
     board.set_uart_timing(uart_baud);
@@ -186,10 +241,20 @@ int main(int argc, char** argv) {
       int a = -1, b = -1;
       std::string arg;
       if (cmd == "estop" && (in >> a) && (a == 0 || a == 1)) {
-        const bool edge = (a == 1) != board.estop();
-        board.set_estop(a == 1);
-        if (edge && a == 1) probes.on_estop_edge();
-        if (edge && a == 0) probes.on_estop_release();
+        long delay = 0;
+        std::string at;
+        if (a == 1 && (in >> at) && at.size() > 1 && at[0] == '@') {
+          estop.after_step_irq = std::stol(at.substr(1));
+          estop.pending = true;
+        } else if (a == 1 && !at.empty() && (delay = std::atol(at.c_str())) > 0) {
+          if (!estop.pending) avr_cycle_timer_register(avr, static_cast<avr_cycle_count_t>(delay), &Estop::fire, &estop);
+          estop.pending = true;
+        } else {
+          if (estop.pending) avr_cycle_timer_cancel(avr, &Estop::fire, &estop);
+          estop.pending = false;
+          estop.after_step_irq = -1;
+          estop.set(a == 1);
+        }
       } else if (cmd == "limit" && (in >> a >> b) && a >= 1 && a <= 6 && (b == 0 || b == 1)) {
         board.set_limit(a - 1, b == 1);
       } else if (cmd == "reset") {
@@ -224,5 +289,5 @@ int main(int argc, char** argv) {
       }
     }
   }
-  finish(board, probes, json_path, 0);
+  finish(board, probes, trace, json_path, 0);
 }

@@ -1,8 +1,10 @@
-// hal_avr.cpp - the HAL on the ATmega2560: Timer1 step interrupt, Timer3 1 kHz profile tick, Timer4 servo PWM,
-// UART0 through Arduino's Serial, EEPROM, watchdog. The only file (with hal_avr.h) that touches registers.
+// hal_avr.cpp - the HAL on the ATmega2560: Timer1 step interrupt, Timer3 1 kHz profile tick (also the millisecond
+// clock), Timer4 servo PWM, UART0 with its own lean interrupts and ring buffers, EEPROM, watchdog. The only file
+// (with hal_avr.h) that touches registers. The Arduino core's Serial and its Timer0 tick are not used: their
+// interrupts keep interrupts off up to 148 and 112 cycles, ours at most the figures in firmware/README.md, Timing.
 #ifdef __AVR__
 
-#include <Arduino.h>
+#include <Arduino.h>  // the core still starts the chip (init()) and calls setup()/loop()
 #include <avr/eeprom.h>
 #include <avr/wdt.h>
 
@@ -29,9 +31,10 @@ extern "C" void hal_read_mcusr(void) {
 #define INPUT_PULLUP_PIN(sig) \
   do { HAL_DDR(sig##_PORT) &= (uint8_t)~(1u << sig##_BIT); HAL_SET(sig); } while (0)
 
+// No interrupts-off window: the Arduino core's Timer0 tick, the only interrupt enabled before this, goes first;
+// every other interrupt source starts disabled, so nothing can run in between.
 void hal_init(void) {
-  uint8_t s = SREG;
-  cli();
+  TIMSK0 = 0;  // the Arduino core's millis() tick is not used (the profile tick counts milliseconds)
   hal_drivers_enable(0);  // EN high before the pins become outputs
   OUTPUT_PIN(RBX1_J1_EN); OUTPUT_PIN(RBX1_J2_EN); OUTPUT_PIN(RBX1_J3_EN);
   OUTPUT_PIN(RBX1_J4_EN); OUTPUT_PIN(RBX1_J5_EN); OUTPUT_PIN(RBX1_J6_EN);
@@ -61,17 +64,76 @@ void hal_init(void) {
   TCCR4B = (uint8_t)((1 << WGM43) | (1 << WGM42) | (1 << CS41));
   ICR4 = 39999;
   OCR4A = 0;
-  SREG = s;
-
-  Serial.begin(SERIAL_BAUD);
+  // UART0: 8N1 at SERIAL_BAUD with double speed (the Arduino core's divisor: 2.1% fast at 115200).
+  UCSR0B = 0;
+  UCSR0A = (uint8_t)(1 << U2X0);
+  UBRR0 = (uint16_t)((F_CPU / 4 / SERIAL_BAUD - 1) / 2);
+  UCSR0C = (uint8_t)((1 << UCSZ01) | (1 << UCSZ00));
+  UCSR0B = (uint8_t)((1 << RXEN0) | (1 << TXEN0) | (1 << RXCIE0));
   wdt_enable(WDTO_500MS);
 }
 
-uint32_t hal_millis(void) { return millis(); }
+// Milliseconds: counted by the profile tick. Written only there, read here with interrupts off (4 bytes).
+static volatile uint32_t ms_count;
 
-int16_t hal_serial_read(void) { return (int16_t)Serial.read(); }
+uint32_t hal_millis(void) {
+  uint8_t s = SREG;
+  cli();
+  uint32_t m = ms_count;
+  SREG = s;
+  return m;
+}
 
-void hal_serial_write(const uint8_t *data, uint8_t n) { Serial.write(data, n); }
+// UART0 ring buffers: one producer and one consumer each, 8-bit indices (the receive side wraps for free at 256).
+// A byte arriving when the receive buffer is full is dropped (the protocol's CRC and retransmission recover).
+#define TX_SIZE 128u
+static volatile uint8_t rx_buf[256];
+static volatile uint8_t rx_head, rx_tail;
+static volatile uint8_t tx_buf[TX_SIZE];
+static volatile uint8_t tx_head, tx_tail;
+
+ISR(USART0_RX_vect) {
+  uint8_t c = UDR0;
+  uint8_t h = rx_head;
+  uint8_t next = (uint8_t)(h + 1u);
+  if (next != rx_tail) {
+    rx_buf[h] = c;
+    rx_head = next;
+  }
+}
+
+ISR(USART0_UDRE_vect) {
+  uint8_t t = tx_tail;
+  if (t == tx_head) {
+    UCSR0B = (uint8_t)(UCSR0B & ~(1 << UDRIE0));  // nothing left: this interrupt only runs inside UART0 code
+    return;
+  }
+  UDR0 = tx_buf[t];
+  tx_tail = (uint8_t)((t + 1u) & (TX_SIZE - 1u));
+}
+
+int16_t hal_serial_read(void) {
+  uint8_t t = rx_tail;
+  if (t == rx_head) return -1;
+  uint8_t c = rx_buf[t];
+  rx_tail = (uint8_t)(t + 1u);
+  return c;
+}
+
+void hal_serial_write(const uint8_t *data, uint8_t n) {
+  for (uint8_t i = 0; i < n; i++) {
+    uint8_t h = tx_head;
+    uint8_t next = (uint8_t)((h + 1u) & (TX_SIZE - 1u));
+    while (next == tx_tail) {
+    }  // full: the UDRE interrupt drains it
+    tx_buf[h] = data[i];
+    tx_head = next;
+    uint8_t s = SREG;
+    cli();  // UCSR0B has no atomic bit instructions and the UDRE interrupt clears UDRIE0
+    UCSR0B = (uint8_t)(UCSR0B | (1 << UDRIE0));
+    SREG = s;
+  }
+}
 
 void hal_step_timer_start(uint16_t ticks) {
   uint8_t s = SREG;
@@ -129,7 +191,11 @@ uint16_t hal_capabilities(void) { return 0; }
 
 ISR(TIMER1_COMPA_vect) { st_step_isr(); }
 
-// Interruptible: the step interrupt must never wait for the profile tick's division.
-ISR(TIMER3_COMPA_vect, ISR_NOBLOCK) { st_profile_isr(); }
+// Interruptible: the step interrupt must never wait for the profile tick's division. A tick never nests in
+// itself: it takes far less than the 1 ms period.
+ISR(TIMER3_COMPA_vect, ISR_NOBLOCK) {
+  ms_count = ms_count + 1;
+  st_profile_isr();
+}
 
 #endif

@@ -25,8 +25,17 @@
 // Inline and call-free, so the step ISR's prologue saves only the registers it uses.
 #define HAL_INLINE static inline __attribute__((always_inline))
 
-// Called from inside the step ISR only (interrupts off), so the 16-bit write needs no guard.
-HAL_INLINE void hal_step_timer_period(uint16_t ticks) { OCR1A = (uint16_t)(ticks - 1u); }
+// Called from inside the step ISR only (interrupts off), so the 16-bit accesses need no guard. Timer1 runs in CTC
+// mode: it counts from 0 after the compare match that raised this interrupt. A compare value written at or below
+// the running count would miss its match on silicon (the counter runs on to 65535: a 32.8 ms stall), so the value
+// is never written below TCNT1 + HAL_STEP_MARGIN ticks; the read and the write are a few cycles apart (under one
+// tick), so a late write is impossible by construction. Such a clamped step comes late, never early.
+#define HAL_STEP_MARGIN 4u
+HAL_INLINE void hal_step_timer_period(uint16_t ticks) {
+  uint16_t top = (uint16_t)(ticks - 1u);
+  uint16_t least = (uint16_t)(TCNT1 + HAL_STEP_MARGIN);  // TCNT1 is small here: just past a match
+  OCR1A = top > least ? top : least;
+}
 
 // Also called from the main loop: the two single-byte writes stop the timer whatever interrupts.
 HAL_INLINE void hal_step_timer_stop(void) {
@@ -44,13 +53,17 @@ HAL_INLINE void hal_step_high(uint8_t mask) {
   if (mask & 0x20) HAL_SET(RBX1_J6_STEP);
 }
 
+// The STEP bits of the pin map that sit on port c: one read-modify-write per port instead of one per pin.
+#define HAL_STEP_BITS(c) (uint8_t)(                                                                 \
+  (RBX1_J1_STEP_PORT == (c) ? 1u << RBX1_J1_STEP_BIT : 0u) | (RBX1_J2_STEP_PORT == (c) ? 1u << RBX1_J2_STEP_BIT : 0u) | \
+  (RBX1_J3_STEP_PORT == (c) ? 1u << RBX1_J3_STEP_BIT : 0u) | (RBX1_J4_STEP_PORT == (c) ? 1u << RBX1_J4_STEP_BIT : 0u) | \
+  (RBX1_J5_STEP_PORT == (c) ? 1u << RBX1_J5_STEP_BIT : 0u) | (RBX1_J6_STEP_PORT == (c) ? 1u << RBX1_J6_STEP_BIT : 0u))
+#define HAL_STEP_CLR_PORT(c) do { if (HAL_STEP_BITS(c)) HAL_PORT(c) &= (uint8_t)~HAL_STEP_BITS(c); } while (0)
+
 HAL_INLINE void hal_step_low(void) {
-  HAL_CLR(RBX1_J1_STEP);
-  HAL_CLR(RBX1_J2_STEP);
-  HAL_CLR(RBX1_J3_STEP);
-  HAL_CLR(RBX1_J4_STEP);
-  HAL_CLR(RBX1_J5_STEP);
-  HAL_CLR(RBX1_J6_STEP);
+  HAL_STEP_CLR_PORT('A'); HAL_STEP_CLR_PORT('B'); HAL_STEP_CLR_PORT('C'); HAL_STEP_CLR_PORT('D');
+  HAL_STEP_CLR_PORT('E'); HAL_STEP_CLR_PORT('F'); HAL_STEP_CLR_PORT('G'); HAL_STEP_CLR_PORT('H');
+  HAL_STEP_CLR_PORT('J'); HAL_STEP_CLR_PORT('K'); HAL_STEP_CLR_PORT('L');
 }
 
 HAL_INLINE void hal_dir_write(uint8_t positive) {

@@ -10,7 +10,8 @@ static plan_block blocks[QUEUE_SIZE];
 static uint8_t head, tail, count;  // count is changed only with interrupts off
 static uint8_t epoch, reserved_epoch;
 static int32_t last_target[6];
-static uint8_t last_target_valid;
+static uint8_t last_target_valid;  // 1: last_target holds it; KEPT: the kept entry's target (after a flush)
+#define KEPT 2
 static uint16_t accepted, flushed;
 
 void queue_init(void) {
@@ -40,27 +41,30 @@ plan_block *queue_reserve(void) {
 uint8_t queue_commit(void) {
   hal_irq_state s = hal_irq_save();
   uint8_t ok = reserved_epoch == epoch && count < QUEUE_SIZE;
+  plan_block *b = &blocks[head];
   if (ok) {
-    plan_block *b = &blocks[head];
-    if (b->kind == BLOCK_MOVE) {
-      memcpy(last_target, b->target, sizeof(last_target));
-      last_target_valid = 1;
-    }
     head = (uint8_t)((head + 1) % QUEUE_SIZE);
     count++;
     accepted++;
   }
   hal_irq_restore(s);
+  // Outside the interrupts-off window (24 bytes would keep it 200 cycles): only the main loop writes last_target,
+  // and a flush from the profile tick meanwhile leaves count 0, so queue_plan_start() does not use it.
+  if (ok && b->kind == BLOCK_MOVE) {
+    memcpy(last_target, b->target, sizeof(last_target));
+    last_target_valid = 1;
+  }
   return ok;
 }
 
+// Called between queue_reserve() and queue_commit(): a flush after this makes the commit fail, so the copy needs
+// no interrupts-off window.
 void queue_plan_start(int32_t out[6], const int32_t current[6]) {
   hal_irq_state s = hal_irq_save();
-  if (count > 0 && last_target_valid)
-    memcpy(out, last_target, sizeof(last_target));
-  else
-    memcpy(out, current, sizeof(last_target));
+  const int32_t *from = count > 0 && last_target_valid ? last_target : current;
+  if (count > 0 && last_target_valid == KEPT) from = blocks[tail].target;
   hal_irq_restore(s);
+  memcpy(out, from, sizeof(last_target));
 }
 
 plan_block *queue_first(void) { return count ? &blocks[tail] : 0; }
@@ -81,9 +85,8 @@ void queue_flush(uint8_t keep_first) {
   count = keep;
   head = (uint8_t)((tail + keep) % QUEUE_SIZE);
   epoch++;
-  // A kept entry may be a move: later moves plan from its target.
-  last_target_valid = keep && blocks[tail].kind == BLOCK_MOVE;
-  if (last_target_valid) memcpy(last_target, blocks[tail].target, sizeof(last_target));
+  // A kept entry may be a move: later moves plan from its target (read from the entry, no copy in this window).
+  last_target_valid = (keep && blocks[tail].kind == BLOCK_MOVE) ? KEPT : 0;
   hal_irq_restore(s);
 }
 

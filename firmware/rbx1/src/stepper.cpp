@@ -1,5 +1,6 @@
-// stepper.cpp - stepper driver: step pulses from the Timer1 compare interrupt (Bresenham/DDA over a planned
-// block) and the 1 kHz profile tick that ramps the velocity and sequences the queue. Never driven by loop().
+// stepper.cpp - stepper driver: step pulses from the Timer1 compare interrupt (16-bit Bresenham/DDA over segments
+// of a planned block) and the 1 kHz profile tick that ramps the velocity, prepares segments and sequences the
+// queue. Never driven by loop().
 #include "stepper.h"
 
 #include <string.h>
@@ -20,27 +21,48 @@
 #define ENTRY_QUEUE 1  // a queue entry (move or gripper), completes into moves_done
 #define ENTRY_JOG 2    // a homing jog
 
-// Step-ISR state: touched only by st_step_isr(), or by others with interrupts off while the timer is stopped.
+// A segment: at most 32767 dominant steps of one block, run by the step ISR's 16-bit Bresenham. A block of more
+// dominant steps runs as several segments, each with the exact integer share of every joint's steps; the profile
+// tick prepares the next one while the current one runs, and the ISR switches without a gap.
+#define SEG_MAX 0x7FFFUL
+struct seg_t {
+  const plan_block *blk;  // the block it belongs to (0: at rest, base holds the positions)
+  uint32_t k0;            // the block's dominant steps before this segment
+  uint16_t m;             // dominant steps in the segment
+  uint8_t dom;            // the dominant joint's bit: it steps on every tick
+  uint8_t act;            // the other joints that step in this segment
+  int16_t inc[6];         // steps per joint in this segment
+  int32_t base[6];        // positions at the segment's start
+  uint8_t dir;            // bit per joint: positive
+};
+static seg_t segs[2];
+
+// Step-ISR state: touched by st_step_isr(); by others while the step timer is stopped (the step interrupt cannot
+// run then), or with interrupts off for a few bytes.
 static struct {
-  int32_t pos[6];
-  int32_t counter[6];  // Bresenham: starts at n-1, minus inc each tick, plus n on a step
-  uint32_t inc[6];     // steps of each joint in this block
-  int16_t counter16[6];  // the same in 16 bits, used when n fits (most moves): half the work on the AVR
-  int16_t inc16[6];
-  uint16_t done16[6];  // steps done per joint in a small block; pos[] then holds the block's start
-  uint8_t small;       // n < 32768: the 16-bit counters are in use
-  uint8_t waiting;     // wait_rest != 0 (one byte to test in the common case)
-  uint8_t dir;         // bit per joint: positive
-  uint32_t n;          // dominant steps
-  uint32_t left;       // dominant steps still to do
-  uint32_t interval;   // current step interval (written by the profile tick)
-  uint32_t wait_rest;  // ticks still to wait before the next step (long intervals)
-  uint8_t running;     // step timer active
-  uint8_t jog_mask;    // limit bit that ends a jog, 0 when not jogging
-  uint8_t jog_level;   // ... when it reads this
+  uint8_t waiting;       // a long interval is being served in chunks (wait_chunks of them left)
+  uint8_t next;          // STEP mask of the coming step, computed one step ahead (so it leaves right after entry)
+  uint8_t act, dom;      // of the current segment
+  uint8_t cur;           // segs[cur] runs
+  uint8_t ready;         // segs[cur ^ 1] is prepared: the ISR switches to it when the current one ends
+  uint8_t running;       // step timer active
+  uint8_t jog_mask;      // limit bit that ends a jog, 0 when not jogging
+  uint8_t jog_level;     // ... when it reads this
   uint8_t jog_hit;
-  uint8_t estop_seen;  // the step ISR saw the e-stop input (the profile tick latches it, even if brief)
+  uint8_t estop_seen;    // the step ISR saw the e-stop input (the profile tick latches it, even if brief)
+  uint8_t gen;           // changes whenever the current segment changes (position readers retry on a change)
+  int16_t n16;           // dominant steps of the current segment
+  uint16_t left;         // of them not yet output
+  uint16_t iv16;         // step interval in timer ticks; 0: longer than 16 bits, then it is
+  uint16_t iv_first;     // ... iv_first (0x8000..0xFFFF) plus iv_chunks times ST_CHUNK (written by the profile tick)
+  uint16_t iv_chunks;
+  uint16_t wait_chunks;  // ST_CHUNKs still to wait before the next step (long intervals)
+  int16_t cnt16[6];      // Bresenham: starts at m-1, minus inc each tick, plus m on a step
+  int16_t inc16[6];
 } st;
+
+// A homing jog runs this block.
+static plan_block jog;
 
 // Profile-tick state.
 static struct {
@@ -58,116 +80,171 @@ static struct {
   uint16_t gripper_us;
 } pf;
 
+// At power-up, before hal_init() starts the interrupts that use this state: no interrupts-off window needed.
 void st_init(void) {
-  hal_irq_state s = hal_irq_save();
   memset(&st, 0, sizeof(st));
   memset(&pf, 0, sizeof(pf));
-  hal_irq_restore(s);
+  memset(segs, 0, sizeof(segs));
 }
 
-// Next step in w ticks (w >= 2); long waits are split into 16-bit chunks.
-static inline __attribute__((always_inline)) void schedule(uint32_t w) {
-  if (w > 0xFFFFUL) {
-    st.wait_rest = w - ST_CHUNK;
-    st.waiting = 1;
-    hal_step_timer_period((uint16_t)ST_CHUNK);
-  } else {
-    st.waiting = 0;
-    hal_step_timer_period((uint16_t)w);
-  }
+// A long interval: its first part now, then iv_chunks chunks (16-bit arithmetic only: fewer registers to save).
+static inline __attribute__((always_inline)) void schedule_long(void) {
+  st.wait_chunks = st.iv_chunks;
+  st.waiting = 1;
+  hal_step_timer_period(st.iv_first);
 }
 
-// One joint's Bresenham step, unrolled with a constant index so the AVR addresses its fields directly.
-// Small blocks (n < 32768) count 16-bit steps done per joint; others move the 32-bit position directly.
+// One joint's Bresenham step for the coming tick, unrolled with a constant index so the AVR addresses its fields
+// directly; joints that do not step in the segment cost one bit test.
 #define ST_JOINT16(i)                                         \
   do {                                                        \
-    int16_t c = (int16_t)(st.counter16[i] - st.inc16[i]);     \
-    if (c < 0) {                                              \
-      c = (int16_t)(c + n);                                   \
-      mask |= (uint8_t)(1u << (i));                           \
-      st.done16[i]++;                                         \
+    if (act & (1u << (i))) {                                  \
+      int16_t c = (int16_t)(st.cnt16[i] - st.inc16[i]);       \
+      if (c < 0) {                                            \
+        c = (int16_t)(c + n);                                 \
+        mask |= (uint8_t)(1u << (i));                         \
+      }                                                       \
+      st.cnt16[i] = c;                                        \
     }                                                         \
-    st.counter16[i] = c;                                      \
-  } while (0)
-#define ST_JOINT32(i)                                         \
-  do {                                                        \
-    int32_t c = st.counter[i] - (int32_t)st.inc[i];           \
-    if (c < 0) {                                              \
-      c += n;                                                 \
-      mask |= (uint8_t)(1u << (i));                           \
-      if (dir & (1u << (i)))                                  \
-        st.pos[i]++;                                          \
-      else                                                    \
-        st.pos[i]--;                                          \
-    }                                                         \
-    st.counter[i] = c;                                        \
   } while (0)
 
-// Time budget (16 MHz), measured under simavr (rbx1-avrsim): 316 cycles per interrupt with 1 joint stepping,
-// 345 with 3, 387 with 6 (65 cycles per step; 16-bit counters, moves under 32768 steps), 577 with 6 joints on
-// the 32-bit path. The 30 kHz aggregate target (6 joints x 5 kHz) costs 5k x 387 = 1.9 M cycles/s, 12% of the
-// CPU; 6 joints at the 20 kHz MAX_SPEED limit (120 kHz aggregate) 48%, and still exact. The e-stop input is read first, so no
-// pulse leaves after it is seen. Per-block Bresenham increments are precomputed; the velocity ramp arrives from
-// the profile tick as a ready interval. The STEP pulse lasts from hal_step_high() to hal_step_low() (>= 2.5 us).
-void st_step_isr(void) {
-  if (st.waiting) {
-    schedule(st.wait_rest);
-    return;
-  }
-  if (hal_estop_input()) {  // the profile tick latches the fault and flushes; here only pulses stop
-    hal_step_timer_stop();
-    st.running = 0;
-    st.estop_seen = 1;
-    return;
-  }
-  uint8_t mask = 0;
-  if (st.small) {
-    const int16_t n = (int16_t)st.n;
+// The STEP mask of the tick after the one being output.
+static inline __attribute__((always_inline)) uint8_t next_mask(void) {
+  uint8_t mask = st.dom;
+  const uint8_t act = st.act;
+  if (act) {
+    const int16_t n = st.n16;
     ST_JOINT16(0);
     ST_JOINT16(1);
     ST_JOINT16(2);
     ST_JOINT16(3);
     ST_JOINT16(4);
     ST_JOINT16(5);
-  } else {
-    const int32_t n = (int32_t)st.n;
-    const uint8_t dir = st.dir;
-    ST_JOINT32(0);
-    ST_JOINT32(1);
-    ST_JOINT32(2);
-    ST_JOINT32(3);
-    ST_JOINT32(4);
-    ST_JOINT32(5);
   }
-  hal_step_high(mask);
-  st.left--;
-  if (st.jog_mask && (uint8_t)((hal_limit_inputs() & st.jog_mask) != 0) == st.jog_level) {
-    st.jog_hit = 1;
-    st.left = 0;
+  return mask;
+}
+
+// Makes segment g the current one (ISR, or with the timer stopped): constant addresses, no pointer registers.
+#define ST_LOAD(g)                                                                                   \
+  do {                                                                                               \
+    st.cur = (g);                                                                                    \
+    st.left = segs[g].m;                                                                             \
+    st.n16 = (int16_t)segs[g].m;                                                                     \
+    st.dom = segs[g].dom;                                                                            \
+    st.act = segs[g].act;                                                                            \
+    const int16_t c0 = (int16_t)(segs[g].m - 1u);                                                    \
+    st.inc16[0] = segs[g].inc[0]; st.cnt16[0] = c0;                                                  \
+    st.inc16[1] = segs[g].inc[1]; st.cnt16[1] = c0;                                                  \
+    st.inc16[2] = segs[g].inc[2]; st.cnt16[2] = c0;                                                  \
+    st.inc16[3] = segs[g].inc[3]; st.cnt16[3] = c0;                                                  \
+    st.inc16[4] = segs[g].inc[4]; st.cnt16[4] = c0;                                                  \
+    st.inc16[5] = segs[g].inc[5]; st.cnt16[5] = c0;                                                  \
+  } while (0)
+
+// Time budget (16 MHz), measured with rbx1-avrsim's pin-level trace (tools/avrsim/timing.py): see
+// firmware/README.md, Timing. Everything on the common path is 8 or 16 bits. The mask of this step was computed
+// by the previous call, so the pulses leave a fixed few cycles after entry whatever the joint count; the e-stop
+// input is sampled right before them. Positions need no per-step work (they follow from the segment and `left`,
+// see st_position()). The STEP pulse lasts from hal_step_high() to hal_step_low(), over the next mask's
+// computation.
+void st_step_isr(void) {
+  if (st.waiting) {
+    if (--st.wait_chunks == 0) st.waiting = 0;
+    hal_step_timer_period((uint16_t)ST_CHUNK);
+    return;
   }
-  if (st.left == 0) {
+  const uint8_t mask = st.next;
+  if (hal_estop_input()) {  // the profile tick latches the fault and flushes; here only pulses stop
     hal_step_timer_stop();
     st.running = 0;
-  } else {
-    schedule(st.interval);
+    st.estop_seen = 1;
+    return;
+  }
+  hal_step_high(mask);
+  uint16_t left = (uint16_t)(st.left - 1u);
+  st.left = left;
+  if (left == 0) {
+    if (!st.ready) {
+      hal_step_timer_stop();
+      st.running = 0;
+      hal_step_low();
+      return;
+    }
+    st.ready = 0;  // the next segment of the block, prepared by the profile tick: no gap
+    if (st.cur)
+      ST_LOAD(0);
+    else
+      ST_LOAD(1);
+    st.gen++;
+  }
+  const uint16_t iv = st.iv16;
+  if (iv)
+    hal_step_timer_period(iv);
+  else
+    schedule_long();
+  st.next = next_mask();
+  if (st.jog_mask && (uint8_t)((hal_limit_inputs() & st.jog_mask) != 0) == st.jog_level) {
+    hal_step_timer_stop();  // on the switch: no further step
+    st.running = 0;
+    st.jog_hit = 1;
   }
   hal_step_low();
 }
 
-// Position of joint i (interrupts off).
-static int32_t pos_of(uint8_t i) {
-  int32_t p = st.pos[i];
-  if (st.small) p += (st.dir & (1u << i)) ? (int32_t)st.done16[i] : -(int32_t)st.done16[i];
-  return p;
+// Steps of a joint with `total` steps in n dominant ticks, after k of them (the Bresenham above, counters starting
+// at n - 1, steps exactly floor(k * total / n)).
+static uint32_t share(uint32_t k, uint32_t total, uint32_t n) {
+  if (k >= n) return total;
+  if (n <= SEG_MAX) return (k * total) / n;  // < 2^30: 32-bit arithmetic
+  return (uint32_t)(((uint64_t)k * total) / n);
 }
 
-// Makes pos[] the current positions again (interrupts off, timer stopped).
-static void fold_positions(void) {
+// Positions of block b after k of its dominant steps.
+static void block_positions(const plan_block *b, uint32_t k, int32_t out[6]) {
   for (uint8_t i = 0; i < RBX1_JOINTS; i++) {
-    st.pos[i] = pos_of(i);
-    st.done16[i] = 0;
+    int32_t rem = (int32_t)(b->steps[i] - share(k, b->steps[i], b->n));  // still to go before the target
+    out[i] = (b->dir_positive & (1u << i)) ? b->target[i] - rem : b->target[i] + rem;
   }
-  st.small = 0;
+}
+
+// Positions now: the current segment's base plus its share of steps. Interrupts go off only to copy 4 bytes.
+void st_position(int32_t out[6]) {
+  for (;;) {
+    hal_irq_state s = hal_irq_save();
+    uint8_t c = st.cur, g = st.gen;
+    uint16_t left = st.left;
+    hal_irq_restore(s);
+    const seg_t *sg = &segs[c];
+    uint16_t k = (uint16_t)(sg->m - left);
+    for (uint8_t i = 0; i < RBX1_JOINTS; i++) {
+      int32_t d = sg->m ? (int32_t)share(k, (uint32_t)sg->inc[i], sg->m) : 0;
+      out[i] = (sg->dir & (1u << i)) ? sg->base[i] + d : sg->base[i] - d;
+    }
+    s = hal_irq_save();
+    uint8_t same = g == st.gen;
+    hal_irq_restore(s);
+    if (same) return;  // the segment changed meanwhile: read again
+  }
+}
+
+// Publishes a change of the current segment to position readers.
+static void bump_gen(void) {
+  hal_irq_state s = hal_irq_save();
+  st.gen++;
+  hal_irq_restore(s);
+}
+
+// Makes the current positions the rest positions (steps stopped): segment with m = 0.
+static void settle(void) {
+  int32_t p[6];
+  st_position(p);
+  st.ready = 0;
+  seg_t *sg = &segs[st.cur];
+  memcpy(sg->base, p, sizeof(p));
+  sg->m = 0;
+  sg->blk = 0;
+  st.left = 0;
+  bump_gen();
 }
 
 static uint32_t interval_of(uint32_t v) {
@@ -177,36 +254,78 @@ static uint32_t interval_of(uint32_t v) {
   return i < 2 ? 2 : i;
 }
 
-// Loads step-ISR state for n dominant steps (interrupts off, timer stopped) and starts the timer.
-static void start_steps(const uint32_t steps[6], uint8_t dir_positive, uint32_t n, uint32_t v) {
+// The interval for the ISR: 16 bits, or 0 and the long value (interrupts off for a few bytes).
+static void set_interval(uint32_t iv) {
+  uint16_t chunks = 0, first = (uint16_t)iv;
+  if (iv > 0xFFFFUL) {
+    chunks = (uint16_t)((iv >> 15) - 1u);
+    first = (uint16_t)(iv - (uint32_t)chunks * ST_CHUNK);  // 0x8000..0xFFFF
+  }
+  __asm__ __volatile__("" : : "r"(first), "r"(chunks) : "memory");  // computed before the window, never inside it
+  hal_irq_state s = hal_irq_save();
+  st.iv_first = first;
+  st.iv_chunks = chunks;
+  st.iv16 = chunks ? 0 : first;
+  hal_irq_restore(s);
+}
+
+// Fills segs[g] with the dominant steps k0.. of block b (up to SEG_MAX of them).
+static void prepare(uint8_t g, const plan_block *b, uint32_t k0) {
+  seg_t *sg = &segs[g];
+  uint32_t left = b->n - k0;
+  uint16_t m = (uint16_t)(left > SEG_MAX ? SEG_MAX : left);
+  sg->blk = b;
+  sg->k0 = k0;
+  sg->m = m;
+  sg->dir = b->dir_positive;
+  sg->dom = 0;
+  sg->act = 0;
+  block_positions(b, k0, sg->base);
+  for (uint8_t i = 0; i < RBX1_JOINTS; i++) {
+    uint8_t bit = (uint8_t)(1u << i);
+    uint32_t total = b->steps[i];
+    uint16_t inc = (uint16_t)(share(k0 + m, total, b->n) - share(k0, total, b->n));
+    sg->inc[i] = (int16_t)inc;
+    if (total == b->n && !sg->dom)
+      sg->dom = bit;  // steps on every tick
+    else if (inc)
+      sg->act |= bit;
+  }
+}
+
+// The profile tick keeps the next segment of a long block ready.
+static void prepare_next(void) {
+  if (st.ready || !st.running) return;
+  const seg_t *sg = &segs[st.cur];
+  const plan_block *b = sg->blk;
+  if (!b || sg->k0 + sg->m >= b->n) return;
+  prepare(st.cur ^ 1u, b, sg->k0 + sg->m);
+  st.ready = 1;  // one byte: the ISR sees all of it or nothing
+}
+
+// Loads block b's first segment (steps stopped) and starts the timer. Interrupts stay on: the step interrupt
+// cannot run while its timer is stopped.
+static void start_steps(const plan_block *b, uint32_t v) {
   uint8_t invert = 0;
   for (uint8_t i = 0; i < RBX1_JOINTS; i++)
     if (SETTING(i, RBX1_KEY_INVERT_DIR)) invert |= (uint8_t)(1u << i);
-  hal_irq_state s = hal_irq_save();
-  hal_dir_write((uint8_t)((dir_positive ^ invert) & 0x3F));  // set now; the first step comes one interval later
-  fold_positions();
-  st.small = n < 0x8000UL;
-  for (uint8_t i = 0; i < RBX1_JOINTS; i++) {
-    st.inc[i] = steps[i];
-    st.counter[i] = (int32_t)(n - 1);
-    st.inc16[i] = (int16_t)steps[i];  // meaningful only when small (then every steps[i] <= n < 32768)
-    st.counter16[i] = (int16_t)(n - 1);
-  }
-  st.dir = dir_positive;
-  st.n = n;
-  st.left = n;
-  st.interval = interval_of(v);
+  hal_dir_write((uint8_t)((b->dir_positive ^ invert) & 0x3F));  // set now; the first step comes one interval later
+  st.ready = 0;
+  uint8_t g = st.cur ^ 1u;
+  prepare(g, b, 0);
+  if (g)
+    ST_LOAD(1);
+  else
+    ST_LOAD(0);
+  st.next = next_mask();
   st.jog_hit = 0;
+  set_interval(interval_of(v));
+  st.waiting = st.iv16 == 0;
+  st.wait_chunks = st.iv_chunks;
+  bump_gen();
+  hal_irq_state s = hal_irq_save();
   st.running = 1;
-  uint32_t first = st.interval;
-  if (first > 0xFFFFUL) {
-    st.wait_rest = first - ST_CHUNK;
-    st.waiting = 1;
-    first = ST_CHUNK;
-  } else {
-    st.waiting = 0;
-  }
-  hal_step_timer_start((uint16_t)first);
+  hal_step_timer_start(st.iv_first);
   hal_irq_restore(s);
 }
 
@@ -235,6 +354,7 @@ void st_abort(void) {
   pf.stopping = 0;
   queue_flush(0);
   hal_irq_restore(s);
+  settle();  // before the flushed slots are written again
 }
 
 void st_stop(void) {
@@ -258,25 +378,17 @@ uint8_t st_busy(void) {
   return b;
 }
 
-void st_position(int32_t out[6]) {
-  hal_irq_state s = hal_irq_save();
-  for (uint8_t i = 0; i < RBX1_JOINTS; i++) out[i] = pos_of(i);
-  hal_irq_restore(s);
-}
-
 // Only at rest (SET_POSITION in IDLE, homing between jogs).
 void st_set_position(const int32_t p[6]) {
-  hal_irq_state s = hal_irq_save();
-  fold_positions();
-  memcpy(st.pos, p, sizeof(st.pos));
-  hal_irq_restore(s);
+  settle();
+  memcpy(segs[st.cur].base, p, sizeof(segs[0].base));
+  bump_gen();  // readers in the middle of a read start again
 }
 
 void st_set_joint_position(uint8_t joint, int32_t p) {
-  hal_irq_state s = hal_irq_save();
-  fold_positions();
-  st.pos[joint] = p;
-  hal_irq_restore(s);
+  settle();
+  segs[st.cur].base[joint] = p;
+  bump_gen();
 }
 
 uint16_t st_moves_done(void) {
@@ -293,12 +405,16 @@ uint16_t st_gripper_us(void) {
   return g;
 }
 
+// Called from the main loop at rest: the profile tick leaves the stepper alone until pf.entry says JOG.
 void st_jog(uint8_t joint, uint8_t positive, uint32_t max_steps, uint32_t speed, uint8_t stop_level) {
-  uint32_t steps[6] = {0, 0, 0, 0, 0, 0};
-  steps[joint] = max_steps;
   uint32_t v = speed * PLAN_V_ONE;
-  hal_irq_state s = hal_irq_save();
-  pf.entry = ENTRY_JOG;
+  settle();
+  memset(&jog, 0, sizeof(jog));
+  memcpy(jog.target, segs[st.cur].base, sizeof(jog.target));
+  jog.steps[joint] = max_steps;
+  jog.n = max_steps;
+  jog.dir_positive = positive ? (uint8_t)(1u << joint) : 0;
+  jog.target[joint] += positive ? (int32_t)max_steps : -(int32_t)max_steps;
   pf.block = 0;
   pf.v = pf.v0 = pf.vc = v;  // constant speed: no ramp (homing speeds are low)
   pf.dv = 0;
@@ -308,7 +424,9 @@ void st_jog(uint8_t joint, uint8_t positive, uint32_t max_steps, uint32_t speed,
   pf.limits_start = hal_limit_inputs();
   st.jog_mask = (uint8_t)(1u << joint);
   st.jog_level = stop_level;
-  start_steps(steps, positive ? (uint8_t)(1u << joint) : 0, max_steps, v);
+  start_steps(&jog, v);
+  hal_irq_state s = hal_irq_save();
+  pf.entry = ENTRY_JOG;
   hal_irq_restore(s);
 }
 
@@ -339,7 +457,7 @@ static void start_entry(plan_block *b) {
   pf.v0sq4 = b->v0sq4;
   pf.a8 = b->a8;
   pf.limits_start = hal_limit_inputs();
-  if (b->n) start_steps(b->steps, b->dir_positive, b->n, b->v0);
+  if (b->n) start_steps(b, b->v0);
 }
 
 static void complete_entry(void) {
@@ -348,6 +466,7 @@ static void complete_entry(void) {
   st_position(end);
   pf.moves_done++;
   hal_entry_done(b->kind, pf.moves_done, b->target, pf.start, end, b->planned_ms, b->pulse_us);
+  settle();  // before the slot is popped and written again
   pf.entry = ENTRY_NONE;
   pf.block = 0;
   queue_pop();
@@ -374,8 +493,12 @@ static uint32_t isqrt32(uint32_t x) {
 // controlled stop decelerates by time from the current velocity instead.
 static void ramp(void) {
   hal_irq_state s = hal_irq_save();
-  uint32_t done = st.n - st.left, left = st.left;
+  uint8_t c = st.cur;
+  uint16_t l16 = st.left;
   hal_irq_restore(s);
+  const seg_t *sg = &segs[c];
+  uint32_t n = pf.block ? pf.block->n : jog.n;
+  uint32_t done = sg->k0 + (uint32_t)(sg->m - l16), left = n - done;
   uint32_t v;
   if (pf.stopping) {
     v = pf.v;
@@ -400,10 +523,9 @@ static void ramp(void) {
   }
   if (v == pf.v) return;  // cruising: the interval stands (saves the division)
   pf.v = v;
-  uint32_t iv = interval_of(v);
-  s = hal_irq_save();
-  st.interval = iv;
-  hal_irq_restore(s);
+  // set_interval() keeps the division out of the interrupts-off window: an asm that reads the result cannot move
+  // before it, and volatile asms (the cli) keep their order. Without that the compiler moved the division inside.
+  set_interval(interval_of(v));
 }
 
 // Time budget: while the velocity changes, an integer square root and a 32-bit division (~1300 cycles); cruising
@@ -441,16 +563,19 @@ void st_profile_isr(void) {
   }
   if (pf.elapsed_ms != 0xFFFF) pf.elapsed_ms++;
   if (moving) {
+    prepare_next();
     ramp();
     return;
   }
   // Steps done (or none): jogs end now; queue entries wait out their minimum duration, unless stopping.
   if (pf.entry == ENTRY_JOG) {
     st.jog_mask = 0;
+    settle();
     pf.entry = ENTRY_NONE;
     return;
   }
   if (pf.stopping) {  // a truncated entry is not completed
+    settle();
     pf.entry = ENTRY_NONE;
     pf.block = 0;
     queue_flush(0);
