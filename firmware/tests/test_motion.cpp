@@ -1,4 +1,5 @@
 // test_motion.cpp - coordinated moves (exact steps, common start and finish), trapezoid limits, duration, queue.
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <vector>
@@ -28,9 +29,9 @@ TEST_F(Fw, CoordinatedMoveEndsAtExactTargetsTogether) {
   check_coordinated(*this, {1000, -2000, 300, 4000, 7, -1}, 3);
 }
 
-TEST_F(Fw, LongCoordinatedMoveUsesExact32BitCounters) {
+TEST_F(Fw, LongCoordinatedMoveRunsAsExactSegments) {
   ready();
-  check_coordinated(*this, {40000, -33001, 7, 0, 1, 32767}, 0);  // n >= 32768: the 32-bit path
+  check_coordinated(*this, {40000, -33001, 7, 0, 1, 32767}, 0);  // n >= 32768: two segments, no gap
 }
 
 void check_coordinated(Fw& fw, std::vector<int32_t> target, int dominant) {
@@ -50,11 +51,19 @@ void check_coordinated(Fw& fw, std::vector<int32_t> target, int dominant) {
     uint32_t ni = (uint32_t)std::abs(target[i]);
     ASSERT_EQ(tr.t[i].size(), ni);
     if (ni == 0) continue;
-    // Bresenham: the k-th step of joint i comes on dominant tick ceil(k*n/ni): evenly spread, exact.
-    for (uint32_t k = 1; k <= ni; k++) {
-      uint64_t tick = ((uint64_t)k * n + ni - 1) / ni;
-      ASSERT_EQ(tr.t[i][k - 1], tr.t[dominant][tick - 1]) << "joint " << i + 1 << " step " << k;
+    // Bresenham per segment of at most 32767 dominant ticks (one segment below that): segment [k0, k0 + m) gets
+    // the joint's exact share floor((k0+m)*ni/n) - floor(k0*ni/n) of steps, and its k-th one comes on the
+    // segment's tick ceil(k*m/inc): evenly spread, exact.
+    uint32_t step = 0;
+    for (uint64_t k0 = 0; k0 < n; k0 += 32767) {
+      uint64_t m = std::min<uint64_t>(32767, n - k0);
+      uint64_t inc = (k0 + m) * ni / n - k0 * ni / n;
+      for (uint64_t k = 1; k <= inc; k++, step++) {
+        uint64_t tick = k0 + (k * m + inc - 1) / inc;
+        ASSERT_EQ(tr.t[i][step], tr.t[dominant][tick - 1]) << "joint " << i + 1 << " step " << step + 1;
+      }
     }
+    ASSERT_EQ(step, ni);
     // The block starts every joint in its first dominant-tick window (k = 1 above: tick ceil(n/ni)) and
     // finishes them all on the dominant joint's last tick: together within one ISR tick.
     EXPECT_EQ(tr.t[i].back(), tr.t[dominant].back()) << "joint " << i + 1;

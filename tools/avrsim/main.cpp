@@ -110,7 +110,8 @@ struct Estop {
   Probes* probes;
   Trace* trace;  // null without --trace
   bool pending = false;  // a delayed assertion is scheduled
-  long after_step_irq = -1;  // "estop 1 @D": assert D cycles after the step timer's next compare match
+  long after_step_irq = -1;  // "estop 1 @D[:N]": assert D cycles after the step timer's N-th compare match
+  long step_irqs_left = 0;   // (from now; N = 1 when not given)
   void set(bool on) {
     const bool edge = on != board->estop();
     board->set_estop(on);
@@ -121,7 +122,7 @@ struct Estop {
   // "estop 1 D": assert D cycles from now (random phases against the step interrupt, in the benchmark and tests).
   static void on_step_irq(avr_irq_t*, uint32_t value, void* param) {
     auto* e = static_cast<Estop*>(param);
-    if (!value || e->after_step_irq < 0) return;
+    if (!value || e->after_step_irq < 0 || --e->step_irqs_left > 0) return;
     avr_cycle_timer_register(e->board->avr(), static_cast<avr_cycle_count_t>(std::max(1L, e->after_step_irq)),
                              &Estop::fire, e);
     e->after_step_irq = -1;
@@ -156,7 +157,7 @@ int main(int argc, char** argv) {
   uint32_t uart_baud = 0;
   std::string trace_path;
   app.add_option("--elf", elf, "firmware ELF")->capture_default_str();
-  app.add_option("--control", control, "control FIFO (estop 0|1 [DELAY_CYCLES|@CYCLES_AFTER_STEP_IRQ], limit J 0|1, reset, stats FILE, quit)");
+  app.add_option("--control", control, "control FIFO (estop 0|1 [DELAY_CYCLES|@CYCLES_AFTER_STEP_IRQ[:NTH_IRQ]], limit J 0|1, reset, stats FILE, quit)");
   app.add_option("--json", json_path, "write the measurements here on exit");
   app.add_flag("--fast", fast, "run as fast as possible instead of in real time");
   app.add_option("--eeprom", eeprom, "keep the EEPROM in this file across runs");
@@ -243,8 +244,14 @@ int main(int argc, char** argv) {
       if (cmd == "estop" && (in >> a) && (a == 0 || a == 1)) {
         long delay = 0;
         std::string at;
+        long d = -1, nth = 1;
         if (a == 1 && (in >> at) && at.size() > 1 && at[0] == '@') {
-          estop.after_step_irq = std::stol(at.substr(1));
+          if (std::sscanf(at.c_str(), "@%ld:%ld", &d, &nth) < 1 || d < 0 || nth < 1) {
+            std::fprintf(stderr, "rbx1-avrsim: bad e-stop phase '%s' (@CYCLES[:NTH_IRQ])\n", at.c_str());
+            continue;
+          }
+          estop.after_step_irq = d;
+          estop.step_irqs_left = nth;
           estop.pending = true;
         } else if (a == 1 && !at.empty() && (delay = std::atol(at.c_str())) > 0) {
           if (!estop.pending) avr_cycle_timer_register(avr, static_cast<avr_cycle_count_t>(delay), &Estop::fire, &estop);

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """timing.py - step timing of the real firmware ELF, from rbx1-avrsim's pin-level trace (--trace): runs a move set
-(one joint and six joints at the 20 kHz cap, an odd-ratio move, STATUS polled throughout, e-stops at random
-phases), then analyses the trace: exact counts, shortest step interval against the commanded one, STEP pulse
+(one joint and six joints at the 20 kHz cap, an odd-ratio move, one of two segments, a slow one with chunked
+waits, STATUS polled throughout, e-stops at random phases), then analyses the trace: exact counts, shortest step interval against the commanded one, STEP pulse
 width, step-ISR cycles per step, the step interrupt's wait from compare match to entry, every interrupts-off window
 (from the SREG I bit), OCR1A writes against the running count, and the e-stop input edge to the last STEP edge.
 Used by tools/avrsim/test/test_timing.py (thresholds) and tools/bench/firmware (figures).
@@ -227,12 +227,13 @@ def run(trace_path, estop_trials=20, seed=1):
                      ("1 joint back", [0, 0, 0, 0, 0, 0]),
                      ("6 joints", [4000, -4000, 4000, -4000, 4000, -4000]),  # six together at the cap
                      ("odd ratios", [-1733, 4100, 977, -2500, 31, 3999]),
-                     ("long", [-33000, 1, -3, 7, 0, 0])]           # over 32767 steps: two segments
+                     ("long", [-33000, 1, -3, 7, 0, 0]),           # over 32767 steps: two segments
+                     ("slow", [-32997, 1, -3, 7, 0, 1], 600)]      # intervals over 16 bits (chunked waits)
             pos = [0] * 6
             phases = []
-            for label, t in moves:
+            for label, t, *duration in moves:
                 c0 = b.cycle()
-                b.req(MsgType.MOVE, target=t, duration_ms=0)
+                b.req(MsgType.MOVE, target=t, duration_ms=duration[0] if duration else 0)
                 s = b.wait_state(State.IDLE)
                 phases.append((label, c0, b.cycle()))
                 if s["position"] != t:
@@ -245,9 +246,10 @@ def run(trace_path, estop_trials=20, seed=1):
             for i in range(estop_trials):
                 b.req(MsgType.SET_POSITION, position=[0] * 6)
                 sign = 1 if i % 2 == 0 else -1
+                # armed before the move: on its N-th step interrupt (ramping or cruising), D cycles after the match
+                b.control(f"estop 1 @{rng.randrange(0, 2000)}:{rng.randrange(1, 2500)}")
+                b.cycle()  # the command has been read
                 b.req(MsgType.MOVE, target=[sign * 3000] * 6, duration_ms=0)
-                time.sleep(0.002 * (i % 5))  # at different points of the ramp
-                b.control(f"estop 1 @{rng.randrange(0, 2000)}")
                 s = b.wait_state(State.FAULT)
                 b.control("estop 0")
                 time.sleep(0.01)

@@ -1,5 +1,5 @@
 """test_firmware_steps.py - the real firmware (build/firmware/rbx1.elf) under rbx1-avrsim: the STEP pulses counted on
-the pins equal the commanded multi-joint targets exactly, and an e-stop input stops the pulses (latency measured).
+the pins equal the commanded multi-joint targets exactly, and an e-stop input stops the pulses within 40 cycles.
 Env: AVRSIM, RBX1_FIRMWARE_ELF, RBX1_SOURCE_DIR."""
 import json
 import os
@@ -103,4 +103,6 @@ def test_estop_input_stops_pulses(board):
     assert out["steps"][:3] == s["position"][:3]  # the firmware's count and the pins agree after the stop
     assert out["pulses"][0] < 3000
     latency = out["estop_latency_cycles"]
-    assert latency is not None and 0 <= latency < 16000 * 5, latency  # the last pulse within 5 ms of the edge
+    # The input is sampled right before the pulses: at most the few cycles from that sample to the last STEP write
+    # (tools/avrsim/test/test_timing.py measures the worst case over random phases).
+    assert latency is not None and 0 <= latency <= 40, latency
