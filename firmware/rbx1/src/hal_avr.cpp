@@ -114,7 +114,13 @@ ISR(USART0_UDRE_vect) {
 
 int16_t hal_serial_read(void) {
   uint8_t t = rx_tail;
-  if (t == rx_head) return -1;
+  if (t == rx_head) {
+    // Idle: read the status register as a polling loop would. Harmless on the chip; simavr's UART model takes
+    // more input from its pty only after such a read finds its FIFO empty (its XON), so without it a burst that
+    // once filled that FIFO would stop reception for good under rbx1-avrsim.
+    (void)UCSR0A;
+    return -1;
+  }
   uint8_t c = rx_buf[t];
   rx_tail = (uint8_t)(t + 1u);
   return c;
