@@ -18,7 +18,7 @@ import time
 ROOT = os.path.normpath(os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "protocol", "python"))
 from rbx1proto.link import Link  # noqa: E402
-from rbx1proto.messages import Key, MsgType, State, Status  # noqa: E402
+from rbx1proto.messages import PROTO_VERSION, Key, MsgType, State, Status  # noqa: E402
 
 AVRSIM = os.environ.get("AVRSIM", os.path.join(ROOT, "build", "bin", "rbx1-avrsim"))
 ELF = os.environ.get("RBX1_FIRMWARE_ELF", os.path.join(ROOT, "build", "firmware", "rbx1.elf"))
@@ -216,7 +216,7 @@ def run(trace_path, estop_trials=20, seed=1):
     with tempfile.TemporaryDirectory(prefix="rbx1-timing-") as tmp:
         b = Board(trace_path, tmp)
         try:
-            b.queue = b.req(MsgType.HELLO, proto_version=1)["queue_size"]
+            b.queue = b.req(MsgType.HELLO, proto_version=PROTO_VERSION)["queue_size"]
             b.req(MsgType.CONFIG_SET, joint=0xFF, key=Key.HEARTBEAT_MS, value=60000)  # --fast: sim time races
             for j in range(6):
                 b.req(MsgType.CONFIG_SET, joint=j, key=Key.MAX_SPEED, value=CAP)

@@ -345,9 +345,17 @@ static uint8_t steps_running(void) {
   return r;
 }
 
+// Two short interrupts-off windows instead of one long one: the pulses stop in the first; a profile tick between
+// the two sees a stopped entry with `stopping` set and drops it as a truncated stop (never counts it as done).
 void st_abort(void) {
   hal_irq_state s = hal_irq_save();
-  stop_steps();
+  hal_step_timer_stop();
+  hal_step_low();
+  st.running = 0;
+  st.waiting = 0;
+  pf.stopping = 1;
+  hal_irq_restore(s);
+  s = hal_irq_save();
   st.jog_mask = 0;
   pf.entry = ENTRY_NONE;
   pf.block = 0;
