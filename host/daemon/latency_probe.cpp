@@ -87,7 +87,12 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_for(std::chrono::milliseconds(60));
     line->inject(false);  // released (after the debounce window)
     std::this_thread::sleep_for(std::chrono::milliseconds(30));
-    auto r = call(machine, daemon::Command::ClearFault);
+    nlohmann::json r;
+    for (int k = 0; k < 5; ++k) {  // on a loaded machine the release may not have been seen yet: try again
+      r = call(machine, daemon::Command::ClearFault);
+      if (r.is_object() && r.contains("result")) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
     if (!r.is_object() || !r.contains("result")) {
       std::fprintf(stderr, "clear_fault failed: %s\n", r.dump().c_str());
       return 1;

@@ -52,10 +52,11 @@ class Reply {
 // UTC wall-clock time as "2026-11-22T01:02:03.456Z".
 std::string iso_now();
 
-// What the daemon does with a well-formed request (rbx1d: Machine::handle). It must end the reply (result or
-// error), now or later from another thread, and must not block for long (jobs run elsewhere). An estop request
-// is acted on before the handler returns. The immediate e-stop entry point without a request is
-// Machine::estop(source).
+// What the daemon does with a well-formed request (rbx1d: Machine::handle). Called from several threads at once
+// (the socket's server thread for estop, its dispatcher thread for the rest, other clients' own threads), so it
+// must be thread-safe. It must end the reply (result or error), now or later from another thread, and must not
+// block for long (jobs run elsewhere). An estop request is acted on before the handler returns. The immediate
+// e-stop entry point without a request is Machine::estop(source).
 using Handler = std::function<void(const Request&, std::shared_ptr<Reply>)>;
 
 // One request line (without its newline) from any client: parsed, then given to handler with a Reply writing to

@@ -1,5 +1,6 @@
 // server.cpp - poll() loop over the listening socket and its clients: line framing, length limit, per-client
-// bounded output buffers with non-blocking writes, e-stop first, idle timeout, room for every new connection.
+// bounded output buffers with non-blocking writes, e-stops on the server thread and everything else on a
+// dispatcher thread, idle timeout, room for every new connection.
 #include "server.hpp"
 
 #include <fcntl.h>
@@ -14,9 +15,11 @@
 #include <cerrno>
 #include <chrono>
 #include <cstring>
+#include <condition_variable>
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <thread>
 #include <vector>
 
 #include <spdlog/spdlog.h>
@@ -47,6 +50,7 @@ struct Connection {
   std::string out;     // reply bytes the socket has not taken yet
   const char* drop = nullptr;  // why the server must close it: output overflowed, or the peer is gone
   int open_replies = 0;  // requests whose final line has not been written yet
+  size_t queued = 0;     // requests waiting for the dispatcher thread
 
   // The replies' sink.
   void write(const std::string& line, bool final) {
@@ -120,6 +124,67 @@ void submit(Client& c, const Handler& handler, const std::string& line) {
   }
   submit_line(handler, line, sink_for(c.conn));
 }
+
+// Runs every request but estop on its own thread: the server thread only moves bytes and answers e-stops, so it is
+// idle in poll() the moment an estop arrives however busy the handler is with other clients' requests.
+class Dispatcher {
+ public:
+  Dispatcher(const Handler& handler, int wake_fd, size_t per_client)
+      : handler_(handler), wake_fd_(wake_fd), per_client_(per_client), thread_([this] { loop(); }) {}
+  ~Dispatcher() {
+    {
+      std::lock_guard lock(mu_);
+      stop_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+  }
+  void push(const std::shared_ptr<Connection>& conn, std::string line) {
+    {
+      std::lock_guard lock(conn->mu);
+      ++conn->open_replies;
+      ++conn->queued;
+    }
+    {
+      std::lock_guard lock(mu_);
+      items_.push_back({conn, std::move(line)});
+    }
+    cv_.notify_one();
+  }
+
+ private:
+  struct Item {
+    std::shared_ptr<Connection> conn;
+    std::string line;
+  };
+  void loop() {
+    for (;;) {
+      Item item;
+      {
+        std::unique_lock lock(mu_);
+        cv_.wait(lock, [this] { return stop_ || !items_.empty(); });
+        if (stop_) return;
+        item = std::move(items_.front());
+        items_.pop_front();
+      }
+      submit_line(handler_, item.line, sink_for(item.conn));
+      bool resume;
+      {
+        std::lock_guard lock(item.conn->mu);
+        resume = item.conn->queued-- == per_client_;
+      }
+      if (resume) wake(wake_fd_);  // the server reads that client again
+    }
+  }
+  const Handler& handler_;
+  int wake_fd_;
+  size_t per_client_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<Item> items_;
+  bool stop_ = false;
+  std::thread thread_;
+};
 
 // True for a line that is an estop request (parsed in full: only a well-formed request counts).
 bool is_estop(const std::string& line) {
@@ -210,6 +275,11 @@ void Server::stop() {
 int Server::run(const Handler& handler) {
   std::vector<Client> clients;
   uint64_t next_id = 1;
+  Dispatcher dispatcher(handler, wake_fd_, limits_.requests_per_client);
+  auto queued = [](const Client& c) {
+    std::lock_guard lock(c.conn->mu);
+    return c.conn->queued;
+  };
   auto open_replies = [](const Client& c) {
     std::lock_guard lock(c.conn->mu);
     return c.conn->open_replies;
@@ -245,13 +315,16 @@ int Server::run(const Handler& handler) {
     fds.push_back({listen_fd_, POLLIN, 0});
     for (auto& c : clients) {
       short events = 0;
-      if (c.lines.empty() && !c.eof) events |= POLLIN;  // a client's backlog is its own brake
+      size_t waiting;
       {
         std::lock_guard lock(c.conn->mu);
         if (!c.conn->out.empty()) events |= POLLOUT;
         if (c.conn->open_replies > 0) c.last_active_ms = now;
+        waiting = c.conn->queued;
       }
-      backlog |= !c.lines.empty();
+      // A client's backlog is its own brake: not read while its requests wait.
+      if (c.lines.empty() && waiting < limits_.requests_per_client && !c.eof) events |= POLLIN;
+      backlog |= !c.lines.empty() && waiting < limits_.requests_per_client;
       timeout = int(std::min<int64_t>(timeout, std::max<int64_t>(0, c.last_active_ms + limits_.idle_timeout_ms - now)));
       fds.push_back({c.conn->fd, events, 0});
     }
@@ -270,26 +343,46 @@ int Server::run(const Handler& handler) {
     const size_t polled = clients.size();  // clients accepted below were not in this poll
 
     // Read and send.
+    auto read_from = [&](Client& c) {
+      char buf[kReadChunk];
+      ssize_t n = ::recv(c.conn->fd, buf, sizeof buf, 0);
+      if (n > 0) {
+        c.last_active_ms = now;
+        take_bytes(c, handler, buf, size_t(n));
+      } else if (n == 0) {
+        c.eof = true;
+      } else if (errno != EAGAIN && errno != EINTR) {
+        std::lock_guard lock(c.conn->mu);
+        c.conn->drop = "the peer is gone";
+      }
+    };
     for (size_t i = 0; i < polled; ++i) {
       short ev = fds[2 + i].revents;
       Client& c = clients[i];
       if (ev & POLLOUT) c.conn->flush();
-      if (ev & POLLIN) {
-        char buf[kReadChunk];
-        ssize_t n = ::recv(c.conn->fd, buf, sizeof buf, 0);
-        if (n > 0) {
-          c.last_active_ms = now;
-          take_bytes(c, handler, buf, size_t(n));
-        } else if (n == 0) {
-          c.eof = true;
-        } else if (errno != EAGAIN && errno != EINTR) {
-          std::lock_guard lock(c.conn->mu);
-          c.conn->drop = "the peer is gone";
-        }
-      }
+      if (ev & POLLIN) read_from(c);
       if (ev & (POLLHUP | POLLERR | POLLNVAL)) {
         std::lock_guard lock(c.conn->mu);
         c.conn->drop = "the peer is gone";
+      }
+    }
+
+    // New connections: every one gets in (beyond max_clients the least recently active one makes room), and is
+    // read at once: a client such as `rbx1 estop` sends its request right after connecting.
+    if (fds[1].revents & POLLIN) {
+      for (int k = 0; k < kAcceptPerRound; ++k) {
+        int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
+        if (fd < 0) break;
+        if (clients.size() >= limits_.max_clients) evict_one();
+        Client c;
+        c.conn = std::make_shared<Connection>();
+        c.conn->fd = fd;
+        c.conn->wake_fd = wake_fd_;
+        c.conn->max_output = limits_.max_output;
+        c.id = next_id++;
+        c.last_active_ms = now;
+        read_from(c);
+        clients.push_back(std::move(c));
       }
     }
 
@@ -305,12 +398,11 @@ int Server::run(const Handler& handler) {
         }
       }
     }
-    // Then every client's requests, a bounded number each.
+    // Then the others' requests to the dispatcher, a bounded number waiting per client.
     for (auto& c : clients)
-      for (size_t k = 0; k < limits_.requests_per_round && !c.lines.empty(); ++k) {
-        std::string line = std::move(c.lines.front());
+      while (!c.lines.empty() && queued(c) < limits_.requests_per_client) {
+        dispatcher.push(c.conn, std::move(c.lines.front()));
         c.lines.pop_front();
-        submit(c, handler, line);
       }
 
     // Close what must go: overflowed or vanished peers, finished half-closed ones, idle ones.
@@ -332,23 +424,6 @@ int Server::run(const Handler& handler) {
       c.conn->close();
       return true;
     });
-
-    // New connections: every one gets in; beyond max_clients the least recently active one makes room.
-    if (fds[1].revents & POLLIN) {
-      for (int k = 0; k < kAcceptPerRound; ++k) {
-        int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
-        if (fd < 0) break;
-        if (clients.size() >= limits_.max_clients) evict_one();
-        Client c;
-        c.conn = std::make_shared<Connection>();
-        c.conn->fd = fd;
-        c.conn->wake_fd = wake_fd_;
-        c.conn->max_output = limits_.max_output;
-        c.id = next_id++;
-        c.last_active_ms = now;
-        clients.push_back(std::move(c));
-      }
-    }
   }
   for (auto& c : clients) c.conn->close();  // replies still running write nowhere from now on
   return 0;

@@ -61,6 +61,9 @@ def test_estop_request_mid_move(sim, daemon_factory):
     assert fired.is_set(), "the pick never reached the carry step"
     assert out["final"]["error"]["code"] == "estop", out["final"]
     assert e2e.events_named(out["events"], "estop"), [e["event"] for e in out["events"]]
+    deadline = time.monotonic() + 10  # the estop's own reply races the pick's final line
+    while "estop" not in replies and time.monotonic() < deadline:
+        time.sleep(0.02)
     assert replies["estop"]["result"]["estop"] is True
     fw = assert_stopped(d, sim, "ESTOP_COMMAND")
     assert_interrupted(out["events"], sim, fw, "carry")
