@@ -1,6 +1,6 @@
 # Top-level entry points. Every target installs what it needs first (tools/install-deps is quiet when done).
 # Host code builds with CMake+Ninja into build/cmake, binaries into build/bin; the AVR firmware into build/firmware.
-.PHONY: all deps host firmware test bench fuzz demo flash deb clean soak
+.PHONY: all deps host firmware test sanitize bench fuzz demo flash deb clean soak
 
 BUILD      := build
 CMAKE_DIR  := $(BUILD)/cmake
@@ -25,6 +25,10 @@ firmware: deps
 # the fuzz smoke, and the end-to-end pick tests.
 test: host firmware
 	@ctest --test-dir $(CMAKE_DIR) --output-on-failure -j $(JOBS)
+
+# The host's GoogleTest suites under ASan+UBSan (build/asan), the daemon, link and GPIO ones under TSan (build/tsan).
+sanitize: deps
+	@tools/sanitize
 
 bench: host firmware
 	@tools/bench/firmware
