@@ -37,6 +37,7 @@ bench: host firmware
 	@tools/bench/perception-corpus
 	@tools/bench/daemon-latency
 	@tools/bench/console-live
+	@tools/bench/world
 
 fuzz: deps
 	@protocol/fuzz/run $(FUZZ_SECONDS)

@@ -125,6 +125,7 @@ int main(int argc, char** argv) {
   std::string eeprom_path, control_path, log_path, link_path;
   rbx1::sim::FaultRates rates;
   uint64_t seed = 1;
+  double time_scale = 1.0;
   app.add_option("--eeprom", eeprom_path, "keep the EEPROM in this file across runs");
   app.add_option("--control", control_path, "control FIFO (created if missing): estop 0|1, limit J 0|1, reset, quit");
   app.add_option("--log-moves", log_path, "write one JSON line per completed queue entry");
@@ -139,6 +140,10 @@ int main(int argc, char** argv) {
   app.add_option("--delay-rate", rates.delay_rate, "per-byte probability of delaying a byte")
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--seed", seed, "random seed of the fault injection");
+  app.add_option("--time-scale", time_scale,
+                 "simulated seconds per wall-clock second (the board runs this much faster; host timeouts such as "
+                 "the heartbeat are in simulated time)")
+      ->check(CLI::Range(0.1, 50.0));
   CLI11_PARSE(app, argc, argv);
 
   struct sigaction sa {};
@@ -217,7 +222,7 @@ int main(int argc, char** argv) {
   while (running && !g_stop) {
     auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count();
     // Catch up every interrupt due by now: step counts stay exact whatever the host's scheduling.
-    rbx1::sim::run_until((uint64_t)ns / 500);
+    rbx1::sim::run_until((uint64_t)((double)ns * time_scale) / 500);
     double now_ms = (double)ns / 1e6;
 
     uint8_t buf[256];

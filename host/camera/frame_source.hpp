@@ -1,4 +1,4 @@
-// frame_source.hpp - where frames come from: a V4L2 camera, an image file, or a folder of images.
+// frame_source.hpp - where frames come from: a V4L2 camera, an image file, a folder of images, or a frame server.
 #pragma once
 #include <memory>
 #include <string>
@@ -10,7 +10,7 @@
 namespace rbx1::camera {
 
 struct CameraConfig {
-  std::string device;  // /dev/videoN, an image file, or a folder of images
+  std::string device;  // /dev/videoN, an image file, a folder of images, or unix:SOCKET (a frame server)
   int width = 1280, height = 720, fps = 30;
   std::string format = "YUYV";  // YUYV or MJPEG (V4L2 only)
 };
@@ -24,7 +24,8 @@ class FrameSource {
 };
 
 // "/dev/videoN" (any character device) -> V4L2 mmap streaming (YUYV or MJPEG); an image file -> that image on
-// every read; a folder -> its images in name order, cycling. null + error "PATH: reason" when it cannot be opened.
+// every read; a folder -> its images in name order, cycling; "unix:PATH" -> a frame server on that Unix socket
+// (socket_source.hpp, e.g. rbx1-world). null + error "PATH: reason" when it cannot be opened.
 std::unique_ptr<FrameSource> open_source(const CameraConfig&, std::string& error);
 
 }  // namespace rbx1::camera

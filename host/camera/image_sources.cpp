@@ -10,6 +10,7 @@
 #include <spdlog/spdlog.h>
 
 #include "frame_source.hpp"
+#include "socket_source.hpp"
 #include "v4l2_capture.hpp"
 
 namespace rbx1::camera {
@@ -98,8 +99,13 @@ void parse_camera_config(rbx1::config::Section camera, CameraConfig& out) {
 std::unique_ptr<FrameSource> open_source(const CameraConfig& config, std::string& error) {
   const std::string& path = config.device;
   if (path.empty()) {
-    error = "camera.device: not set (a /dev/video device, an image file or a folder)";
+    error = "camera.device: not set (a /dev/video device, an image file, a folder or unix:SOCKET)";
     return nullptr;
+  }
+  if (path.rfind(kSocketPrefix, 0) == 0) {
+    auto source = std::make_unique<SocketSource>(path.substr(std::strlen(kSocketPrefix)));
+    if (source->open(error) < 0) return nullptr;
+    return source;
   }
   struct stat st{};
   bool exists = ::stat(path.c_str(), &st) == 0;

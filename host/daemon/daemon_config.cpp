@@ -36,6 +36,8 @@ void parse_daemon_config(config::Section s, DaemonConfig& out) {
   out.start_place = s.string("start_place", out.start_place);
   if (out.start_place.empty() || !printable(out.start_place))
     s.errors().add(s.path() + ".start_place", "must be a place name of 1..64 printable characters");
+  out.verify_pick = s.boolean("verify_pick", out.verify_pick);
+  out.pick_retries = int(s.integer("pick_retries", out.pick_retries, 0, 3));
   s.reject_unknown();
 }
 

@@ -20,6 +20,8 @@ struct DaemonConfig {
   std::string annotate;             // if set, each scan writes the annotated image (Figure 20) here
   std::string start_pick;           // [gpio] start_button runs `pick start_pick --place start_place`; "" = none
   std::string start_place = "tray";
+  bool verify_pick = false;         // after a pick, scan again: the object still there is a pick_failed (pick_check.cpp)
+  int pick_retries = 1;             // with verify_pick: picks again this often, each from a fresh detection
 };
 
 void parse_daemon_config(config::Section daemon, DaemonConfig& out);

@@ -42,13 +42,15 @@ bool load_config(const std::string& file, const Overrides& overrides, Config& ou
     for (const auto& [k, v] : out.arm.places) known += (known.empty() ? "" : ", ") + k;
     errors.add("daemon.start_place", "no place \"" + out.daemon.start_place + "\" in [arm] places (known: " + known + ")");
   }
-  if (out.camera.device.empty()) errors.add("camera.device", "must be set (a /dev/videoN, an image or a folder)");
+  if (out.camera.device.empty()) errors.add("camera.device", "must be set (a /dev/videoN, an image, a folder or unix:SOCKET)");
   // px_per_cm = 0 leaves the daemon without table coordinates: every pick would fail "uncalibrated".
   if (auto vis = top.section("vision"); vis.has("px_per_cm") && !(out.vision.px_per_cm > 0))
     errors.add("vision.px_per_cm", "must be above 0 (or leave it out and set vision.calibration)");
 
   fs::path dir = fs::absolute(fs::path(file)).parent_path();
-  if (out.camera.device.rfind("/dev/", 0) != 0) resolve(out.camera.device, dir);
+  // Devices and frame servers (unix:PATH) are absolute; images and folders are relative to the config file.
+  if (out.camera.device.rfind("/dev/", 0) != 0 && out.camera.device.rfind("unix:", 0) != 0)
+    resolve(out.camera.device, dir);
   resolve(out.vision.background_path, dir);
   resolve(out.vision.library_path, dir);
   resolve(out.vision.calibration_path, dir);

@@ -115,6 +115,27 @@ TEST(DaemonConfig, StartPickAndPlace) {
   EXPECT_EQ(defaults.start_place, "tray");
 }
 
+TEST(DaemonConfig, PickCheck) {
+  config::Errors errors;
+  auto table = config::parse_text("verify_pick = true\npick_retries = 2\n", errors);
+  DaemonConfig d;
+  parse_daemon_config(config::Section(&table, "daemon", errors), d);
+  EXPECT_TRUE(errors.ok()) << errors.joined();
+  EXPECT_TRUE(d.verify_pick);
+  EXPECT_EQ(d.pick_retries, 2);
+  config::Errors bad_errors;
+  auto bad = config::parse_text("verify_pick = 1\npick_retries = 4\n", bad_errors);
+  DaemonConfig b;
+  parse_daemon_config(config::Section(&bad, "daemon", bad_errors), b);
+  std::string all = bad_errors.joined();
+  EXPECT_EQ(bad_errors.messages().size(), 2u) << all;
+  EXPECT_NE(all.find("daemon.verify_pick"), std::string::npos) << all;
+  EXPECT_NE(all.find("daemon.pick_retries"), std::string::npos) << all;
+  DaemonConfig defaults;
+  EXPECT_FALSE(defaults.verify_pick);
+  EXPECT_EQ(defaults.pick_retries, 1);
+}
+
 extern char** environ;
 
 namespace {

@@ -67,6 +67,10 @@ class Machine {
   bool run_steps(Reply& reply, const std::vector<MotionStep>& steps, MotionResult& result);
   // Capture + detect at the scan pose; false after reply.error.
   bool capture_and_detect(Reply& reply, nlohmann::json& detections, std::string& report);
+  // [daemon] verify_pick (pick_check.cpp): after a pick, a scan must no longer show the object where it was;
+  // else pick_failed and, up to pick_retries times, a new pick from the fresh detection. false after reply.error.
+  bool check_pick(Reply& reply, const std::string& name, const std::string& place, nlohmann::json picked,
+                  nlohmann::json& result);
   bool ready(Reply& reply);
   const char* busy_locked() const;  // the running or queued job's command, or null (mutex_ held)
   MotionHooks hooks(Reply& reply);

@@ -1,0 +1,253 @@
+// world_test.cpp - the world's gripper model, geometry, camera and scene file against hand-checked cases.
+#include <cmath>
+#include <fstream>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "camera_view.hpp"
+#include "joint_steps.hpp"
+#include "kinematics.hpp"
+#include "world_state.hpp"
+
+using namespace rbx1::world;
+
+namespace {
+
+// One 30 x 10 mm bar at (300, 0), long axis along base x, 8 mm high; no errors.
+Scene bar_scene() {
+  Scene s;
+  s.links = s.nominal.links;
+  s.camera = s.nominal_camera;
+  Object o;
+  o.id = 1;
+  o.cls = "rectangle";
+  o.outline = {{-15, -5}, {15, -5}, {15, 5}, {-15, 5}};
+  o.grip_yaw_deg = 90;  // the short chord is across the bar
+  o.grip_width_mm = 10;
+  o.height_mm = 8;
+  o.x_mm = 300;
+  o.y_mm = 0;
+  s.objects.push_back(o);
+  Place tray;
+  tray.name = "tray";
+  tray.x_mm = 150;
+  tray.y_mm = 250;
+  tray.z_mm = 5;
+  tray.size_x_mm = tray.size_y_mm = 120;
+  s.places.push_back(tray);
+  return s;
+}
+
+std::string steps_json(const rbx1::arm::Steps& s) {
+  std::string out = "[";
+  for (int i = 0; i < 6; ++i) out += (i ? "," : "") + std::to_string(s[i]);
+  return out + "]";
+}
+
+// Drives a World through log lines built from top-down grasp poses.
+struct Driver {
+  explicit Driver(World& world) : w(world) {}
+  World& w;
+  rbx1::arm::ArmConfig cfg;
+  rbx1::arm::Steps at = rbx1::arm::joints_to_steps(cfg, cfg.home);
+  void move_to(double x, double y, double z, double yaw) {
+    rbx1::arm::Joints q;
+    std::string e;
+    ASSERT_TRUE(rbx1::arm::ik(cfg, {x, y, z, yaw}, rbx1::arm::steps_to_joints(cfg, at), q, e)) << e;
+    rbx1::arm::Steps to = rbx1::arm::joints_to_steps(cfg, q);
+    std::string line = "{\"kind\":\"move\",\"start\":" + steps_json(at) + ",\"end\":" + steps_json(to) +
+                       ",\"target\":" + steps_json(to) + ",\"pulse_us\":0}";
+    ASSERT_TRUE(w.apply_log_line(line, e)) << e;
+    at = to;
+  }
+  void gripper(double opening_mm) {
+    int pulse = int(std::lround(1000 + 1000 * opening_mm / 50.0));
+    std::string e, line = "{\"kind\":\"gripper\",\"start\":" + steps_json(at) + ",\"end\":" + steps_json(at) +
+                          ",\"pulse_us\":" + std::to_string(pulse) + "}";
+    ASSERT_TRUE(w.apply_log_line(line, e)) << e;
+  }
+};
+
+int count(const nlohmann::json& state, const char* key) { return state["counts"][key].get<int>(); }
+
+}  // namespace
+
+TEST(Geometry, ExtentInBandAndOverlap) {
+  Polygon sq{{0, 0}, {10, 0}, {10, 10}, {0, 10}};
+  double lo, hi;
+  ASSERT_TRUE(extent_in_band(sq, {5, 5}, {1, 0}, 1.0, lo, hi));
+  EXPECT_DOUBLE_EQ(lo, -5);
+  EXPECT_DOUBLE_EQ(hi, 5);
+  EXPECT_FALSE(extent_in_band(sq, {5, 20}, {1, 0}, 2.0, lo, hi));  // the band passes 8 mm beside it
+  Polygon l{{0, 0}, {30, 0}, {30, 8}, {8, 8}, {8, 20}, {0, 20}};   // an L: its band at y = 15 is only the stem
+  ASSERT_TRUE(extent_in_band(l, {0, 15}, {1, 0}, 1.0, lo, hi));
+  EXPECT_NEAR(lo, 0, 1e-9);
+  EXPECT_NEAR(hi, 8, 1e-9);
+  EXPECT_TRUE(polygons_overlap(sq, {{9, 9}, {20, 9}, {20, 20}, {9, 20}}));
+  EXPECT_FALSE(polygons_overlap(sq, {{11, 0}, {20, 0}, {20, 10}, {11, 10}}));
+  EXPECT_TRUE(polygons_overlap(sq, {{-5, 4}, {15, 4}, {15, 6}, {-5, 6}}));  // crossing, no vertex inside
+}
+
+TEST(Gripper, StraddlingGraspCarriesTheObjectToTheTray) {
+  World w(bar_scene());
+  Driver d(w);
+  d.move_to(300, 0, 60, 90);  // above, closing line across the bar
+  d.gripper(15);              // 10 mm bar, opened to 15
+  d.move_to(300, 0, 2, 90);
+  d.gripper(0);
+  auto s = w.state();
+  EXPECT_EQ(count(s, "collisions"), 0);
+  ASSERT_EQ(count(s, "grasps"), 1);
+  EXPECT_EQ(s["arm"]["holding"], 1);
+  EXPECT_NEAR(s["arm"]["opening_mm"].get<double>(), 10.0, 0.05);
+  const auto& g = s["events"].back();
+  EXPECT_EQ(g["event"], "grasp");
+  EXPECT_LT(g["offset_mm"].get<double>(), 0.2);
+  EXPECT_LT(g["yaw_error_deg"].get<double>(), 0.1);
+  d.move_to(300, 0, 80, 90);
+  d.move_to(150, 250, 80, 0);
+  d.gripper(15);
+  s = w.state();
+  EXPECT_EQ(count(s, "placements"), 1);
+  EXPECT_EQ(s["objects"][0]["place"], "tray");
+  EXPECT_NEAR(s["objects"][0]["x_mm"].get<double>(), 150, 0.3);
+  EXPECT_NEAR(s["objects"][0]["y_mm"].get<double>(), 250, 0.3);
+  EXPECT_DOUBLE_EQ(s["objects"][0]["z_mm"].get<double>(), 5.0);
+  EXPECT_EQ(s["arm"]["holding"], nullptr);
+}
+
+TEST(Gripper, OffCentreGraspIsCentredAndReported) {
+  World w(bar_scene());
+  Driver d(w);
+  d.move_to(306, 2, 60, 90);  // 6 mm along the bar, 2 mm across: still straddles it
+  d.gripper(20);
+  d.move_to(306, 2, 2, 90);
+  d.gripper(0);
+  auto s = w.state();
+  ASSERT_EQ(count(s, "grasps"), 1);
+  EXPECT_NEAR(s["events"].back()["offset_mm"].get<double>(), std::hypot(6.0, 2.0), 0.1);
+  // The fingers pushed the bar across until it sat centred between them.
+  EXPECT_NEAR(s["objects"][0]["y_mm"].get<double>(), 2.0, 0.15);
+}
+
+TEST(Gripper, DescendingOntoTheObjectIsACollision) {
+  World w(bar_scene());
+  Driver d(w);
+  d.move_to(300, 8, 60, 90);  // 8 mm off across a 10 mm bar: a 15 mm opening puts a finger on it
+  d.gripper(15);
+  d.move_to(300, 8, 2, 90);
+  auto s = w.state();
+  ASSERT_EQ(count(s, "collisions"), 1);
+  EXPECT_EQ(s["events"].back()["event"], "collision");
+  EXPECT_EQ(s["events"].back()["object"], 1);
+  d.gripper(0);
+  s = w.state();
+  EXPECT_EQ(count(s, "grasps"), 0);
+  EXPECT_EQ(count(s, "closed_empty"), 1);
+  EXPECT_EQ(s["events"].back()["reason"], "a finger is on object 1");
+}
+
+TEST(Gripper, ClosingBesideTheObjectClosesOnNothing) {
+  World w(bar_scene());
+  Driver d(w);
+  d.move_to(300, 30, 60, 90);
+  d.gripper(15);
+  d.move_to(300, 30, 2, 90);
+  d.gripper(0);
+  auto s = w.state();
+  EXPECT_EQ(count(s, "collisions"), 0);
+  EXPECT_EQ(count(s, "grasps"), 0);
+  EXPECT_EQ(count(s, "closed_empty"), 1);
+  EXPECT_EQ(s["events"].back()["reason"], "nothing between the fingers");
+  EXPECT_DOUBLE_EQ(s["objects"][0]["moved_mm"].get<double>(), 0.0);
+}
+
+TEST(Gripper, AboveTheObjectNothingHappens) {
+  World w(bar_scene());
+  Driver d(w);
+  d.move_to(300, 0, 60, 0);
+  d.gripper(5);
+  d.move_to(300, 0, 9, 0);  // fingertips 1 mm above the 8 mm top, closing line along the bar
+  d.gripper(0);
+  auto s = w.state();
+  EXPECT_EQ(count(s, "collisions"), 0);
+  EXPECT_EQ(count(s, "grasps"), 0);
+}
+
+TEST(Camera, NominalScanViewMatchesTheDaemonsMapping) {
+  // data/rbx1.toml [arm.camera]: pixel (0, 0) at (370, 100) mm, image x = base -y, 40 px/cm.
+  Scene s = bar_scene();
+  auto pose = camera_pose(s.links, s.camera, s.nominal.scan);
+  Eigen::Vector2d o = pixel_on_table(s.camera, pose, 0, 0);
+  EXPECT_NEAR(o.x(), 370.0, 0.01);
+  EXPECT_NEAR(o.y(), 100.0, 0.01);
+  Eigen::Vector2d e = pixel_on_table(s.camera, pose, 400, 0);
+  EXPECT_NEAR(e.x(), 370.0, 0.01);
+  EXPECT_NEAR(e.y(), 0.0, 0.01);
+}
+
+TEST(Camera, TheBarIsDarkWhereTheMappingPutsIt) {
+  Scene s = bar_scene();
+  s.objects[0].bgr = {40, 40, 40};
+  s.light.noise_sigma = 0;
+  auto pose = camera_pose(s.links, s.camera, s.nominal.scan);
+  cv::Mat img = render_frame(s, pose, 0);
+  ASSERT_EQ(img.cols, 800);
+  ASSERT_EQ(img.rows, 600);
+  cv::Mat grey, mask;
+  cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY);
+  cv::threshold(grey, mask, 110, 255, cv::THRESH_BINARY_INV);
+  cv::Moments m = cv::moments(mask, true);
+  ASSERT_GT(m.m00, 100);
+  // (300, 0) mm -> pixel ((100 - 0) * 4, (370 - 300) * 4) = (400, 280); the top face 8 mm nearer the camera
+  // is magnified about the optical axis (pixel 399.5, 299.5) by 488 / 480.
+  double k = 488.0 / 480.0;
+  EXPECT_NEAR(m.m10 / m.m00, 399.5 + (400 - 399.5) * k, 0.5);
+  EXPECT_NEAR(m.m01 / m.m00, 299.5 + (280 - 299.5) * k, 0.5);
+  // 30 mm along base x = 120 px along image y; 10 mm across = 40 px (top face, magnified).
+  EXPECT_NEAR(std::sqrt(m.mu02 / m.m00 * 12), 120 * k, 3);
+  EXPECT_NEAR(std::sqrt(m.mu20 / m.m00 * 12), 40 * k, 3);
+}
+
+TEST(Scene, ErrorsAreDrawnFromTheSeedWithinTheirMagnitudes) {
+  const std::string path = testing::TempDir() + "world_scene_test.json";
+  std::ofstream(path) << R"({"format": "rbx1-world", "version": 1, "seed": 5,
+    "errors": {"links_mm": 1, "mount_mm": 5, "mount_deg": 3},
+    "objects": [{"class": "rectangle", "outline_mm": [[-5, -5], [5, -5], [5, 5]], "grip_yaw_deg": 0,
+                 "grip_width_mm": 10, "x_mm": 300, "y_mm": 0}]})";
+  Scene a, b, c;
+  std::string e;
+  ASSERT_TRUE(load_scene(path, a, e)) << e;
+  ASSERT_TRUE(load_scene(path, b, e)) << e;
+  ASSERT_TRUE(load_scene(path, c, e, 6)) << e;
+  EXPECT_EQ(a.errors.mount_rpy_drawn, b.errors.mount_rpy_drawn);
+  EXPECT_NE(a.errors.mount_rpy_drawn, c.errors.mount_rpy_drawn);
+  for (double v : a.errors.links_drawn) EXPECT_LE(std::abs(v), 1.0);
+  for (double v : a.errors.mount_xyz_drawn) EXPECT_LE(std::abs(v), 5.0);
+  for (double v : a.errors.mount_rpy_drawn) EXPECT_LE(std::abs(v), 3.0);
+  EXPECT_NEAR(a.links.tool_mm - a.nominal.links.tool_mm, a.errors.links_drawn[3], 1e-12);
+}
+
+TEST(Scene, BadFilesAreOneLineNamingTheField) {
+  const std::string path = testing::TempDir() + "world_scene_bad.json";
+  auto expect = [&path](const std::string& text, const std::string& message) {
+    std::ofstream(path, std::ios::trunc) << text;
+    Scene s;
+    std::string e;
+    EXPECT_FALSE(load_scene(path, s, e));
+    EXPECT_EQ(e, path + ": " + message);
+  };
+  expect(R"({"format": "x", "version": 1})", "format: must be \"rbx1-world\"");
+  expect(R"({"format": "rbx1-world", "version": 1})", "objects: missing (an array)");
+  expect(R"({"format": "rbx1-world", "version": 1, "objects": [{"class": "a", "outline_mm": [[0, 0], [1, 0]]}]})",
+         "objects[0].outline_mm: missing (at least 3 points)");
+  expect(R"({"format": "rbx1-world", "version": 1, "objects": [{"class": "a", "outline_mm": [[0, 0], [1, 0], [1, 1]],
+            "grip_yaw_deg": 0, "grip_width_mm": 1, "x_mm": 300}]})", "objects[0].y_mm: missing");
+  expect(R"({"format": "rbx1-world", "version": 1, "light": {"noise_sigma": "a"}, "objects": []})",
+         "light.noise_sigma: must be a number");
+  Scene s;
+  std::string e;
+  EXPECT_FALSE(load_scene(path + ".absent", s, e));
+  EXPECT_EQ(e, path + ".absent: cannot read the scene file");
+}
