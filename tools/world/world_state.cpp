@@ -14,6 +14,7 @@ using nlohmann::json;
 namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kSampleDeg = 0.5;  // a move is checked every half degree of its largest joint change
+constexpr int kTable = -1;          // the table in a move's list of things hit
 constexpr double kClosedMm = 1.0;   // closing below this with nothing held: the fingers closed on nothing
 
 double r2(double v) { return std::round(v * 100) / 100; }
@@ -170,6 +171,12 @@ void World::at_pose(const arm::Joints& deg, bool, std::vector<int>& hit) {
   double tip = t.translation().z();
   Polygon pads[2] = {pad(c, u, opening_mm_ / 2, opening_mm_ / 2 + g.finger_thickness_mm, g.finger_width_mm / 2),
                      pad(c, -u, opening_mm_ / 2, opening_mm_ / 2 + g.finger_thickness_mm, g.finger_width_mm / 2)};
+  if (tip < 0 && !std::count(hit.begin(), hit.end(), kTable)) {
+    hit.push_back(kTable);
+    ++collisions_;
+    emit({{"event", "collision"}, {"object", nullptr}, {"class", "table"},
+          {"tool_mm", {r2(t.translation().x()), r2(t.translation().y()), r2(tip)}}});
+  }
   for (size_t k = 0; k < scene_.objects.size(); ++k) {
     const Object& o = scene_.objects[k];
     if (int(k) == held_.index || std::count(hit.begin(), hit.end(), int(k))) continue;

@@ -175,6 +175,17 @@ TEST(Gripper, AboveTheObjectNothingHappens) {
   EXPECT_EQ(count(s, "grasps"), 0);
 }
 
+TEST(Gripper, FingertipsBelowTheTableAreACollision) {
+  World w(bar_scene());
+  Driver d(w);
+  d.move_to(350, 50, 60, 0);
+  d.move_to(350, 50, -1, 0);
+  auto s = w.state();
+  ASSERT_EQ(count(s, "collisions"), 1);
+  EXPECT_EQ(s["events"].back()["class"], "table");
+  EXPECT_EQ(s["events"].back()["object"], nullptr);
+}
+
 TEST(Camera, NominalScanViewMatchesTheDaemonsMapping) {
   // data/rbx1.toml [arm.camera]: pixel (0, 0) at (370, 100) mm, image x = base -y, 40 px/cm.
   Scene s = bar_scene();
