@@ -13,7 +13,8 @@
 namespace rbx1::camera {
 
 namespace {
-constexpr int kTimeoutMs = 5000;  // a frame server that does not answer within this is stalled
+constexpr int kTimeoutMs = 30000;  // a frame server that does not answer within this is stalled (a
+                                   // simulated one renders on a loaded machine: seconds)
 
 // Reads exactly n bytes; 0 or -errno (-ETIMEDOUT, -ECONNRESET on EOF).
 int read_exact(int fd, char* p, size_t n) {

@@ -14,7 +14,7 @@ namespace rbx1::world {
 
 namespace {
 constexpr double kPi = 3.14159265358979323846;
-constexpr int kSuper = 3;         // supersampling per axis: polygons are filled at 3x and averaged down
+constexpr int kSuper = 2;         // supersampling per axis: polygons are filled at 2x and averaged down
 constexpr int kShift = 4;         // fillPoly's fractional bits
 constexpr double kStepMm = 1.5;   // edges are cut into pieces this long so the lens bends them
 
