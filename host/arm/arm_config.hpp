@@ -4,6 +4,7 @@
 #include <array>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 
 #include "config.hpp"
@@ -52,6 +53,15 @@ struct CameraMount {
   double origin_x_mm = 370.0, origin_y_mm = 100.0;  // base-frame position of the vision frame's origin
   double rotation_deg = -90.0;                      // from base +x towards base +y
   bool flip_y = true;
+  // The workspace calibration in force (rbx1 calibrate-workspace, from the daemon's state directory): undistorted
+  // image pixel -> base mm at table height, row-major 3x3, for frames of width x height. When set, it replaces
+  // origin, rotation and flip (vision_map.hpp).
+  struct PixelMap {
+    std::array<double, 9> h{};
+    int width = 0, height = 0;
+    bool operator==(const PixelMap&) const = default;
+  };
+  std::optional<PixelMap> pixel_map;
   bool operator==(const CameraMount&) const = default;
 };
 

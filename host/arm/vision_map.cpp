@@ -25,4 +25,21 @@ TablePoint vision_to_base(const ArmConfig& cfg, const Eigen::Vector2d& centroid_
   return t;
 }
 
+TablePoint pixels_to_base(const ArmConfig& cfg, const Eigen::Vector2d& centroid_px, const Eigen::Vector2d& p1_px,
+                          const Eigen::Vector2d& p2_px, double& opening_mm) {
+  constexpr double kPi = 3.14159265358979323846;
+  const auto& m = *cfg.camera.pixel_map;
+  Eigen::Matrix3d h;
+  h << m.h[0], m.h[1], m.h[2], m.h[3], m.h[4], m.h[5], m.h[6], m.h[7], m.h[8];
+  auto map = [&h](const Eigen::Vector2d& p) { return (h * p.homogeneous()).hnormalized(); };
+  Eigen::Vector2d c = map(centroid_px), a = map(p1_px), b = map(p2_px);
+  opening_mm = (b - a).norm();
+  TablePoint t;
+  t.x_mm = c.x();
+  t.y_mm = c.y();
+  t.z_mm = cfg.heights.table_z_mm;
+  t.yaw_deg = normalize_axis_deg(std::atan2(b.y() - a.y(), b.x() - a.x()) * 180.0 / kPi);
+  return t;
+}
+
 }  // namespace rbx1::arm

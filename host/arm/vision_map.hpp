@@ -16,4 +16,10 @@ struct TablePoint {
 // z_mm is the table surface (heights.table_z_mm).
 TablePoint vision_to_base(const ArmConfig& cfg, const Eigen::Vector2d& centroid_cm, double grip_angle_deg);
 
+// Through the workspace calibration (cfg.camera.pixel_map, which must be set): the centroid and the grip's contact
+// points in undistorted pixels (objects[].centroid_px, grip.p1_px, grip.p2_px) -> the grasp point, the closing
+// line's yaw and the opening (mm, the contact points' distance on the table).
+TablePoint pixels_to_base(const ArmConfig& cfg, const Eigen::Vector2d& centroid_px, const Eigen::Vector2d& p1_px,
+                          const Eigen::Vector2d& p2_px, double& opening_mm);
+
 }  // namespace rbx1::arm

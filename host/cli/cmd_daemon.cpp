@@ -31,11 +31,14 @@ double default_timeout_s(daemon::Command c) {
     default: return 0;
   }
 }
+}  // namespace
 
 std::string default_socket() {
   const char* env = std::getenv("RBX1_SOCKET");
   return env && *env ? env : control::kDefaultSocket;
 }
+
+namespace {
 
 // Codes that mean the request itself was wrong (usage), as opposed to a job that failed.
 bool usage_error(const std::string& code) {
@@ -73,8 +76,16 @@ void print_result(const nlohmann::json& result) {
   }
 }
 
+}  // namespace
+
 // Sends the request and streams its reply. Returns the exit code: 0 ok, 1 job error, 2 usage/connection.
-int run(const DaemonOptions& o, const daemon::Request& request) {
+int run_daemon_request(const std::string& socket, bool json, const daemon::Request& request, nlohmann::json* result_out,
+                       bool print_final, double timeout_s_option) {
+  struct {
+    std::string socket;
+    bool json;
+    double timeout_s;
+  } o{socket, json, timeout_s_option};
   control::Client client;
   std::string error;
   if (client.connect(o.socket, error) < 0) {
@@ -118,11 +129,18 @@ int run(const DaemonOptions& o, const daemon::Request& request) {
       return usage_error(code) ? 2 : 1;
     }
     if (ev.contains("result")) {
-      if (!o.json) print_result(ev["result"]);
+      if (result_out) *result_out = ev["result"];
+      if (!o.json && print_final) print_result(ev["result"]);
       return 0;
     }
     if (!o.json) print_event(ev);
   }
+}
+
+namespace {
+
+int run(const DaemonOptions& o, const daemon::Request& request) {
+  return run_daemon_request(o.socket, o.json, request, nullptr, true, o.timeout_s);
 }
 
 CLI::App* add(CLI::App& app, std::shared_ptr<DaemonOptions> o, const char* name, const char* help) {

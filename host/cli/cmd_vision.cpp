@@ -41,8 +41,8 @@ const CLI::Validator kPositive(
     },
     "POSITIVE");
 
-void add_common(CLI::App* c, Common& s) {
-  c->add_option("IMAGE", s.image, "image file of the scene")->required();
+void add_common(CLI::App* c, Common& s, bool image_required = true) {
+  c->add_option("IMAGE", s.image, "image file of the scene")->required(image_required);
   c->add_option("--background", s.opt.background_path, "image of the empty scene (same size); default: modelled");
   c->add_option("--objects", s.objects, "objects darker or lighter than the background")
       ->check(CLI::IsMember({"auto", "dark", "light"}));
@@ -120,14 +120,37 @@ void add_teach(CLI::App& app, int& exit_code) {
   auto name = std::make_shared<std::string>();
   auto library = std::make_shared<std::string>();
   auto mirror_ok = std::make_shared<bool>(false);
-  CLI::App* c = app.add_subcommand("teach", "add the single object in IMAGE to a library of known objects");
-  add_common(c, *s);
+  auto from_camera = std::make_shared<int>(0);
+  auto socket = std::make_shared<std::string>(default_socket());
+  CLI::App* c = app.add_subcommand("teach", "add the single object in IMAGE to a library of known objects, or object "
+                                            "INDEX of rbx1d's live scan to its library (--from-camera)");
+  add_common(c, *s, false);
   c->add_option("--name", *name, "the object's name")->required();
-  c->add_option("--library", *library, "library file (created if missing; written atomically)")->required();
+  c->add_option("--library", *library, "library file (created if missing; written atomically)");
   c->add_flag("--mirror-ok", *mirror_ok, "a mirror image of this object is the same object");
-  c->callback([s, name, library, mirror_ok, &exit_code] {
+  c->add_option("--from-camera", *from_camera, "teach object INDEX (as numbered by rbx1 scan) through rbx1d")
+      ->check(CLI::PositiveNumber);
+  c->add_option("--socket", *socket, "rbx1d control socket, with --from-camera (default $RBX1_SOCKET)");
+  c->callback([s, name, library, mirror_ok, from_camera, socket, &exit_code] {
     if (name->empty()) {
       exit_code = fail("teach", "--name must not be empty");
+      return;
+    }
+    if (*from_camera > 0) {
+      if (!s->image.empty() || !library->empty()) {
+        exit_code = fail("teach", "--from-camera teaches into rbx1d's state library: no IMAGE, no --library");
+        return;
+      }
+      daemon::Request r;
+      r.command = daemon::Command::Teach;
+      r.index = *from_camera;
+      r.name = *name;
+      r.mirror_ok = *mirror_ok;
+      exit_code = run_daemon_request(*socket, false, r);
+      return;
+    }
+    if (s->image.empty() || library->empty()) {
+      exit_code = fail("teach", "give IMAGE and --library FILE, or --from-camera INDEX");
       return;
     }
     std::string error;

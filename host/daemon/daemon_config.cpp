@@ -38,6 +38,8 @@ void parse_daemon_config(config::Section s, DaemonConfig& out) {
     s.errors().add(s.path() + ".start_place", "must be a place name of 1..64 printable characters");
   out.verify_pick = s.boolean("verify_pick", out.verify_pick);
   out.pick_retries = int(s.integer("pick_retries", out.pick_retries, 0, 3));
+  out.state_dir = s.string("state_dir", out.state_dir);
+  if (out.state_dir.empty()) s.errors().add(s.path() + ".state_dir", "must be a folder path");
   s.reject_unknown();
 }
 

@@ -22,6 +22,7 @@ struct DaemonConfig {
   std::string start_place = "tray";
   bool verify_pick = false;         // after a pick, scan again: the object still there is a pick_failed (pick_check.cpp)
   int pick_retries = 1;             // with verify_pick: picks again this often, each from a fresh detection
+  std::string state_dir = "/var/lib/rbx1";  // what the operator taught (state_dir.hpp); overrides the file's values
 };
 
 void parse_daemon_config(config::Section daemon, DaemonConfig& out);

@@ -26,6 +26,7 @@ bool load_config(const std::string& file, const Overrides& overrides, Config& ou
   gpio::parse_gpio_config(top.section("gpio"), out.gpio);
   parse_daemon_config(top.section("daemon"), out.daemon);
   console::parse_console_config(top.section("console"), out.console);
+  parse_operator_config(top.section("operator"), out.op);
   top.reject_unknown();  // a misspelt table name must not pass silently
 
   if (!overrides.port.empty()) out.link.port = overrides.port;
@@ -54,6 +55,8 @@ bool load_config(const std::string& file, const Overrides& overrides, Config& ou
   resolve(out.vision.background_path, dir);
   resolve(out.vision.library_path, dir);
   resolve(out.vision.calibration_path, dir);
+  resolve(out.daemon.state_dir, dir);
+  if (!overrides.state_dir.empty()) out.daemon.state_dir = fs::absolute(overrides.state_dir).lexically_normal().string();
   return errors.ok();
 }
 

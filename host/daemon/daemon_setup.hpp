@@ -9,6 +9,7 @@
 #include "frame_source.hpp"
 #include "gpio.hpp"
 #include "link.hpp"
+#include "operator_config.hpp"
 #include "vision.hpp"
 
 namespace rbx1::daemon {
@@ -21,6 +22,7 @@ struct Config {
   gpio::GpioConfig gpio;
   DaemonConfig daemon;
   console::ConsoleConfig console;
+  OperatorConfig op;  // [operator]
 };
 
 // Command-line and environment overrides, applied after the file (documented in README.md).
@@ -29,10 +31,11 @@ struct Overrides {
   std::string socket;    // --socket: [daemon] socket
   std::string annotate;  // --annotate: [daemon] annotate
   std::string console;   // --console: [console] bind
+  std::string state_dir; // --state-dir: [daemon] state_dir
 };
 
 // Reads and validates file; relative paths in it ([camera] device, [vision] files) are taken relative to the
-// file's folder. Every problem goes to errors, naming its key. Returns errors.ok().
+// file's folder (also [daemon] state_dir). Every problem goes to errors, naming its key. Returns errors.ok().
 bool load_config(const std::string& file, const Overrides& overrides, Config& out, config::Errors& errors);
 
 // What Machine::start() would meet (rbx1d --check-config): the vision files (library, background,

@@ -88,6 +88,9 @@ void Machine::set_led(bool ready) {
 Machine::~Machine() { stop(); }
 
 int Machine::start(std::string& error) {
+  // What the operator taught overrides the file's defaults (scan pose, places, workspace map, background, library).
+  state_ = std::make_unique<StateDir>(config_.daemon.state_dir);
+  if (!state_->apply(config_, error)) return -EINVAL;
   auto source = camera::open_source(config_.camera, error);
   if (!source) return -ENOENT;
   camera_ = std::make_unique<camera::LockedSource>(std::move(source));
@@ -440,6 +443,12 @@ void Machine::run_job(Job& job) {
     case Command::Pick: job_pick(reply, job.request.name, job.request.place); break;
     case Command::Home: job_home(reply); break;
     case Command::ClearFault: job_clear_fault(reply); break;
+    case Command::Jog: job_jog(reply, job.request); break;
+    case Command::PoseSave: job_pose_save(reply); break;
+    case Command::PlaceSave: job_place_save(reply, job.request.name); break;
+    case Command::Background: job_background(reply, job.request.frames); break;
+    case Command::Teach: job_teach(reply, job.request); break;
+    case Command::CalibrateWorkspace: job_calibrate_workspace(reply, job.request); break;
     default: reply.error("bad_request", "not a job"); break;
   }
   if (!reply.finished()) reply.error("internal", "job ended without a result");
@@ -672,7 +681,8 @@ void Machine::job_pick(Reply& reply, const std::string& name, const std::string&
   std::vector<MotionStep> steps;
   nlohmann::json plan_info;
   std::string error;
-  if (!plan_pick_steps(config_.arm, st, *best, place, steps, plan_info, error)) {
+  std::pair<int, int> size{detections["image"].value("width", 0), detections["image"].value("height", 0)};
+  if (!plan_pick_steps(config_.arm, st, *best, size, place, steps, plan_info, error)) {
     reply.event("unreachable", {{"name", name}, {"reason", error}});
     if (!move_to(reply, "home", config_.arm.home)) return;
     reply.error("plan_failed", "cannot pick \"" + name + "\": " + error);

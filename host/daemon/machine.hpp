@@ -14,6 +14,8 @@
 #include "daemon_setup.hpp"
 #include "motion.hpp"
 #include "server.hpp"
+#include "state_dir.hpp"
+#include "workspace_session.hpp"
 
 namespace rbx1::daemon {
 
@@ -72,6 +74,15 @@ class Machine {
   bool check_pick(Reply& reply, const std::string& name, const std::string& place, nlohmann::json picked,
                   nlohmann::json& result);
   bool ready(Reply& reply);
+  // The operator's jobs (operator_jobs.cpp) and the workspace calibration (workspace_jobs.cpp).
+  void job_jog(Reply& reply, const Request& request);
+  void job_pose_save(Reply& reply);
+  void job_place_save(Reply& reply, const std::string& name);
+  void job_background(Reply& reply, int frames);
+  void job_teach(Reply& reply, const Request& request);
+  void job_calibrate_workspace(Reply& reply, const Request& request);
+  bool current_pose(Reply& reply, arm::Steps& steps, arm::Joints& deg);  // a fresh STATUS; false after reply.error
+  bool reload_vision(Reply& reply);  // after the background or the library changed
   const char* busy_locked() const;  // the running or queued job's command, or null (mutex_ held)
   MotionHooks hooks(Reply& reply);
   nlohmann::json status_reply();
@@ -81,6 +92,8 @@ class Machine {
   link::Link link_;
   std::unique_ptr<camera::FrameSource> camera_;
   std::unique_ptr<vision::Vision> vision_;
+  std::unique_ptr<StateDir> state_;                    // [daemon] state_dir
+  std::unique_ptr<WorkspaceSession> workspace_;        // the calibration in progress (worker thread only)
   std::unique_ptr<gpio::EdgeSource> estop_source_;
   std::unique_ptr<gpio::InputWatcher> estop_input_;
   std::unique_ptr<gpio::EdgeSource> start_source_;

@@ -37,6 +37,7 @@ int main(int argc, char** argv) {
   app.add_option("--socket", overrides.socket, "control socket path, overriding [daemon] socket");
   app.add_option("--annotate", overrides.annotate, "write each scan's annotated image here ([daemon] annotate)");
   app.add_option("--console", overrides.console, "web console HOST:PORT, overriding [console] bind (port 0: any free)");
+  app.add_option("--state-dir", overrides.state_dir, "the taught data's folder, overriding [daemon] state_dir");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -38,7 +38,7 @@ bool plan_pose_move(const arm::ArmConfig& cfg, const rbx1_status_resp& current, 
 }
 
 bool plan_pick_steps(const arm::ArmConfig& cfg, const rbx1_status_resp& current, const nlohmann::json& object,
-                     const std::string& place, std::vector<MotionStep>& out, nlohmann::json& info, std::string& error) {
+                     std::pair<int, int> image_size, const std::string& place, std::vector<MotionStep>& out, nlohmann::json& info, std::string& error) {
   const auto& c = object["centroid_cm"];
   const auto& grip = object["grip"];
   if (!c.is_array() || c.size() != 2 || !c[0].is_number() || !grip.is_object() || !grip["opening_cm"].is_number()) {
@@ -49,12 +49,28 @@ bool plan_pick_steps(const arm::ArmConfig& cfg, const rbx1_status_resp& current,
     error = "no feasible grip (opening " + std::to_string(grip["opening_cm"].get<double>()) + " cm)";
     return false;
   }
-  arm::TablePoint p = arm::vision_to_base(cfg, {c[0].get<double>(), c[1].get<double>()}, grip["angle_deg"].get<double>());
   arm::PickObject obj;
-  obj.x_mm = p.x_mm;
-  obj.y_mm = p.y_mm;
-  obj.yaw_deg = p.yaw_deg;
-  obj.opening_mm = grip["opening_cm"].get<double>() * 10.0;
+  if (cfg.camera.pixel_map) {
+    // The workspace calibration: straight from the image's pixels to the base frame.
+    auto px = [](const nlohmann::json& v) { return Eigen::Vector2d(v[0].get<double>(), v[1].get<double>()); };
+    const auto& m = *cfg.camera.pixel_map;
+    if (image_size.first != m.width || image_size.second != m.height) {
+      error = "the workspace calibration is for " + std::to_string(m.width) + "x" + std::to_string(m.height) +
+              " frames, the camera gives " + std::to_string(image_size.first) + "x" + std::to_string(image_size.second) +
+              " (rbx1 calibrate-workspace again)";
+      return false;
+    }
+    arm::TablePoint p = arm::pixels_to_base(cfg, px(object["centroid_px"]), px(grip["p1_px"]), px(grip["p2_px"]), obj.opening_mm);
+    obj.x_mm = p.x_mm;
+    obj.y_mm = p.y_mm;
+    obj.yaw_deg = p.yaw_deg;
+  } else {
+    arm::TablePoint p = arm::vision_to_base(cfg, {c[0].get<double>(), c[1].get<double>()}, grip["angle_deg"].get<double>());
+    obj.x_mm = p.x_mm;
+    obj.y_mm = p.y_mm;
+    obj.yaw_deg = p.yaw_deg;
+    obj.opening_mm = grip["opening_cm"].get<double>() * 10.0;
+  }
   std::vector<arm::Waypoint> waypoints;
   if (!arm::plan_pick(cfg, steps_of(current), obj, place, waypoints, error)) return false;
   out.clear();
@@ -73,6 +89,7 @@ bool plan_pick_steps(const arm::ArmConfig& cfg, const rbx1_status_resp& current,
   }
   info = {{"grasp", {{"x_mm", round2(obj.x_mm)}, {"y_mm", round2(obj.y_mm)}, {"yaw_deg", round2(obj.yaw_deg)},
                      {"opening_mm", round2(obj.opening_mm)}}},
+          {"map", cfg.camera.pixel_map ? "workspace" : "mount"},
           {"place", place},
           {"waypoints", wj}};
   return true;

@@ -1,6 +1,7 @@
 // pick_plan.hpp - from a detected object (rbx1 detect JSON) to firmware queue entries, through rbx1_arm's planner.
 #pragma once
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -16,7 +17,8 @@ bool plan_pose_move(const arm::ArmConfig& cfg, const rbx1_status_resp& current, 
 
 // The whole pick of `object` (one element of the detection's "objects") to `place`. info gets the grasp in the
 // base frame and the waypoints (the "planned" event). false + error (uncalibrated, infeasible grip, out of reach).
+// image_size: the detection's frame (width, height), checked against the workspace calibration's.
 bool plan_pick_steps(const arm::ArmConfig& cfg, const rbx1_status_resp& current, const nlohmann::json& object,
-                     const std::string& place, std::vector<MotionStep>& out, nlohmann::json& info, std::string& error);
+                     std::pair<int, int> image_size, const std::string& place, std::vector<MotionStep>& out, nlohmann::json& info, std::string& error);
 
 }  // namespace rbx1::daemon

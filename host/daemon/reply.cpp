@@ -19,8 +19,8 @@ std::string iso_now() {
   return buf;
 }
 
-Reply::Reply(Sink sink, Command command)
-    : sink_(std::move(sink)), command_(command), start_(std::chrono::steady_clock::now()) {}
+Reply::Reply(Sink sink, Command command, Presence presence)
+    : sink_(std::move(sink)), command_(command), presence_(std::move(presence)), start_(std::chrono::steady_clock::now()) {}
 
 double Reply::elapsed_ms() const {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start_).count();
@@ -54,7 +54,8 @@ void Reply::error(const std::string& code, const std::string& message) {
   write_line(error_reply({code, message}), true);
 }
 
-std::optional<Command> submit_line(const Handler& handler, std::string_view line, Reply::Sink sink) {
+std::optional<Command> submit_line(const Handler& handler, std::string_view line, Reply::Sink sink,
+                                   Reply::Presence presence) {
   Request request;
   Error err;
   if (!parse_request(line, request, err)) {
@@ -63,7 +64,7 @@ std::optional<Command> submit_line(const Handler& handler, std::string_view line
     return std::nullopt;
   }
   if (request.command != Command::Status) spdlog::info("control: request {}", request_json(request).dump());
-  handler(request, std::make_shared<Reply>(std::move(sink), request.command));
+  handler(request, std::make_shared<Reply>(std::move(sink), request.command, std::move(presence)));
   return request.command;
 }
 
@@ -116,9 +117,9 @@ bool ReplyQueue::done() const {
   return final_seen_;
 }
 
-std::shared_ptr<ReplyQueue> submit(const Handler& handler, const Request& request) {
+std::shared_ptr<ReplyQueue> submit(const Handler& handler, const Request& request, Reply::Presence presence) {
   auto q = std::make_shared<ReplyQueue>();
-  handler(request, std::make_shared<Reply>(ReplyQueue::sink_for(q), request.command));
+  handler(request, std::make_shared<Reply>(ReplyQueue::sink_for(q), request.command, std::move(presence)));
   return q;
 }
 

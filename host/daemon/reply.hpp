@@ -27,7 +27,10 @@ class Reply {
   // called with the reply's lock held and must not block (queue the line, never wait for a reader).
   using Sink = std::function<void(const std::string& line, bool final)>;
 
-  Reply(Sink sink, Command command);
+  // Whether the client is still there (the jog's dead-man rule); null: a client that never goes (start button).
+  using Presence = std::function<bool()>;
+
+  Reply(Sink sink, Command command, Presence presence = nullptr);
   // An event line: {"ts": ISO-8601 UTC, "t_ms": ms since the request, "event": name, ...fields}.
   void event(const std::string& name, nlohmann::json fields = nlohmann::json::object());
   void result(nlohmann::json result);
@@ -37,12 +40,15 @@ class Reply {
   // Also log every line (spdlog, info) prefixed with tag: a job without a client (the start button).
   void log_to(std::string tag) { log_tag_ = std::move(tag); }
   double elapsed_ms() const;
+  // True once the client went away (its connection closed or shut down). A jog whose client is gone is stopped.
+  bool client_gone() const { return presence_ && !presence_(); }
 
  private:
   void write_line(const nlohmann::json& j, bool final);
 
   Sink sink_;
   Command command_;
+  Presence presence_;
   std::chrono::steady_clock::time_point start_;
   std::mutex mutex_;
   std::atomic<bool> finished_{false};
@@ -62,7 +68,8 @@ using Handler = std::function<void(const Request&, std::shared_ptr<Reply>)>;
 // One request line (without its newline) from any client: parsed, then given to handler with a Reply writing to
 // sink; a malformed line gets its error reply on sink at once and never reaches the handler. Returns the parsed
 // command, or nothing for a malformed line.
-std::optional<Command> submit_line(const Handler& handler, std::string_view line, Reply::Sink sink);
+std::optional<Command> submit_line(const Handler& handler, std::string_view line, Reply::Sink sink,
+                                   Reply::Presence presence = nullptr);
 
 // An in-process client's view of one reply (the web console, tests): the reply's lines queued as they come.
 class ReplyQueue {
@@ -84,6 +91,6 @@ class ReplyQueue {
 };
 
 // Submits request to handler in-process; its reply lines arrive in the returned queue.
-std::shared_ptr<ReplyQueue> submit(const Handler& handler, const Request& request);
+std::shared_ptr<ReplyQueue> submit(const Handler& handler, const Request& request, Reply::Presence presence = nullptr);
 
 }  // namespace rbx1::daemon

@@ -12,6 +12,9 @@ constexpr CommandName kCommands[] = {
     {Command::Status, "status"}, {Command::Scan, "scan"},   {Command::Pick, "pick"},
     {Command::Home, "home"},     {Command::Estop, "estop"}, {Command::ClearFault, "clear_fault"},
     {Command::Shutdown, "shutdown"},
+    {Command::Jog, "jog"},       {Command::PoseSave, "pose_save"}, {Command::PlaceSave, "place_save"},
+    {Command::Background, "background"}, {Command::Teach, "teach"},
+    {Command::CalibrateWorkspace, "calibrate_workspace"},
 };
 
 // A label or place: printable, short, no control characters (it ends up in events and logs).
@@ -65,6 +68,7 @@ bool parse_request(std::string_view line, Request& out, Error& error) {
     error = {"unknown_command", "unknown command \"" + shown + "\""};
     return false;
   }
+  if (is_operator_command(out.command)) return parse_operator_fields(j, name, out, error);
   // Only pick takes arguments; anything else present is a mistake worth reporting.
   for (const auto& [key, value] : j.items()) {
     if (key == "cmd") continue;
@@ -95,6 +99,7 @@ nlohmann::json request_json(const Request& r) {
     j["name"] = r.name;
     j["place"] = r.place;
   }
+  if (is_operator_command(r.command)) operator_fields_json(r, j);
   return j;
 }
 

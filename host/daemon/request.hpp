@@ -1,5 +1,7 @@
 // request.hpp - the control socket's request lines: parsing and validation into a typed Request, or an error reply.
 #pragma once
+#include <array>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -11,12 +13,26 @@ namespace rbx1::daemon {
 // Longest request line accepted (bytes, newline excluded); longer lines get error "line_too_long".
 inline constexpr size_t kMaxRequestLine = 4096;
 
-enum class Command { Status, Scan, Pick, Home, Estop, ClearFault, Shutdown };
+enum class Command {
+  Status, Scan, Pick, Home, Estop, ClearFault, Shutdown,
+  // The operator's commands (operator_request.cpp parses their fields; host/daemon/README.md "Operator commands").
+  Jog, PoseSave, PlaceSave, Background, Teach, CalibrateWorkspace,
+};
 
 struct Request {
   Command command = Command::Status;
-  std::string name;   // pick: the object's library label
+  std::string name;   // pick: the object's library label; pose_save, place_save, teach: the name to save
   std::string place;  // pick: a place name from [arm] places
+  // jog: joint 1..6 with steps or deg, or joint 0 with mm (the tool point's Cartesian step, yaw kept).
+  int joint = 0;
+  int32_t steps = 0;
+  double deg = 0;
+  bool by_steps = false;
+  std::array<double, 3> mm{};
+  int index = 0;       // teach: the object's index in the live scan; calibrate_workspace record: the marker id
+  int frames = 0;      // background: frames to average (0 = [operator] background_frames)
+  bool mirror_ok = false;  // teach
+  std::string action;  // calibrate_workspace: start, status, record, fit, save, cancel
 };
 
 // An error reply: {"error": {"code": code, "message": message}}. Codes are stable strings clients test.
@@ -31,6 +47,11 @@ const char* command_name(Command c);
 bool parse_request(std::string_view line, Request& out, Error& error);
 // The request as a JSON line (what the client sends).
 nlohmann::json request_json(const Request& r);
+
+// The operator commands' fields (operator_request.cpp): j is the request object, out.command already set.
+bool is_operator_command(Command c);
+bool parse_operator_fields(const nlohmann::json& j, const std::string& cmd, Request& out, Error& error);
+void operator_fields_json(const Request& r, nlohmann::json& j);
 
 // Reply lines.
 nlohmann::json error_reply(const Error& e);

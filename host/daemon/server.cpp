@@ -94,6 +94,15 @@ struct Connection {
     return true;
   }
 
+  // Whether the peer is still there (the jog's dead-man rule): not once it closed or shut down its end, nor after
+  // a failed send.
+  bool present() {
+    std::lock_guard lock(mu);
+    if (fd < 0 || drop) return false;
+    pollfd p{fd, POLLRDHUP, 0};
+    return !(::poll(&p, 1, 0) > 0 && (p.revents & (POLLRDHUP | POLLHUP | POLLERR)));
+  }
+
   void close() {
     std::lock_guard lock(mu);
     if (fd >= 0) ::close(fd);
@@ -122,7 +131,7 @@ void submit(Client& c, const Handler& handler, const std::string& line) {
     std::lock_guard lock(c.conn->mu);
     ++c.conn->open_replies;
   }
-  submit_line(handler, line, sink_for(c.conn));
+  submit_line(handler, line, sink_for(c.conn), [conn = c.conn] { return conn->present(); });
 }
 
 // Runs every request but estop on its own thread: the server thread only moves bytes and answers e-stops, so it is

@@ -150,6 +150,8 @@ class Daemon:
         cfg.setdefault("daemon", {})["socket"] = self.socket
         # The web console on a free port (tests run side by side); console_url() reads it from the log.
         cfg.setdefault("console", {}).setdefault("bind", "127.0.0.1:0")
+        # Taught data stays in the test's folder, never in the machine's /var/lib/rbx1.
+        cfg["daemon"].setdefault("state_dir", str(tmp / "state"))
         self.config = write_config(tmp, cfg)
         self.log_path = tmp / "rbx1d.log"
         self.log = open(self.log_path, "w")

@@ -1,0 +1,197 @@
+// workspace_jobs.cpp - rbx1 calibrate-workspace as requests a CLI or a web page can drive: start (markers at the scan
+// pose), status, record (the tool point on marker i), fit (RMS, leave-one-out), save (atomic), cancel.
+#include <cmath>
+#include <cstdio>
+
+#include <spdlog/spdlog.h>
+
+#include "calibration.hpp"
+#include "joint_steps.hpp"
+#include "kinematics.hpp"
+#include "machine.hpp"
+
+namespace rbx1::daemon {
+
+namespace {
+
+double round3(double v) { return std::round(v * 1000) / 1000; }
+nlohmann::json point(cv::Point2d p) { return {round3(p.x), round3(p.y)}; }
+
+nlohmann::json markers_json(const WorkspaceSession& s) {
+  nlohmann::json a = nlohmann::json::array();
+  for (const auto& m : s.markers) {
+    nlohmann::json corners = nlohmann::json::array();
+    for (const auto& c : m.corners) corners.push_back(point(c));
+    nlohmann::json j{{"id", m.id}, {"centre_px", point(m.centre)}, {"corners_px", corners}};
+    auto t = s.touched.find(m.id);
+    j["recorded_mm"] = t == s.touched.end() ? nlohmann::json(nullptr) : point(t->second.mm);
+    a.push_back(j);
+  }
+  return a;
+}
+
+const calib::DetectedMarker* find_marker(const WorkspaceSession& s, int id) {
+  for (const auto& m : s.markers)
+    if (m.id == id) return &m;
+  return nullptr;
+}
+
+std::vector<calib::WorkspacePoint> recorded_points(const WorkspaceSession& s) {
+  std::vector<calib::WorkspacePoint> pts;
+  for (const auto& [id, t] : s.touched) pts.push_back({id, find_marker(s, id)->centre, t.mm});
+  return pts;
+}
+
+}  // namespace
+
+void Machine::job_calibrate_workspace(Reply& reply, const Request& r) {
+  const std::string& a = r.action;
+  const char* in_force = config_.arm.camera.pixel_map ? "workspace" : "mount";
+  if (a == "cancel") {
+    bool was = workspace_ != nullptr;
+    workspace_.reset();
+    reply.result({{"cancelled", was}, {"in_force", in_force}});
+    return;
+  }
+  if (a == "status") {
+    nlohmann::json j{{"active", workspace_ != nullptr}, {"in_force", in_force}};
+    if (workspace_) {
+      j["markers"] = markers_json(*workspace_);
+      j["recorded"] = workspace_->touched.size();
+    }
+    reply.result(j);
+    return;
+  }
+  if (a == "start") {
+    if (!ready(reply)) return;
+    if (!move_to(reply, "scan_pose", config_.arm.scan)) return;
+    cv::Mat frame;
+    if (int rc = camera_->read(frame); rc < 0 || frame.empty()) {
+      reply.error("camera_failed", camera_->describe() + ": capture failed (" + std::to_string(rc) + ")");
+      return;
+    }
+    reply.event("captured", {{"source", camera_->describe()}, {"width", frame.cols}, {"height", frame.rows}});
+    // Perception works on the undistorted frame; the markers are found in the same one, so the map fits its pixels.
+    std::string error;
+    if (!config_.vision.calibration_path.empty()) {
+      calib::Calibration c;
+      if (!calib::load_calibration(config_.vision.calibration_path, c, error)) {
+        reply.error("vision_failed", error);
+        return;
+      }
+      frame = c.undistort(frame);
+    }
+    auto s = std::make_unique<WorkspaceSession>();
+    std::vector<int> duplicates;
+    if (!calib::detect_markers(frame, config_.op.marker_dictionary, s->markers, duplicates, error)) {
+      reply.error("vision_failed", error);
+      return;
+    }
+    s->image_size = frame.size();
+    if (int(s->markers.size()) < config_.op.min_markers) {
+      reply.error("too_few_markers", std::to_string(s->markers.size()) + " " + config_.op.marker_dictionary +
+                                         " markers seen at the scan pose; lay at least " +
+                                         std::to_string(config_.op.min_markers) +
+                                         " inside the camera's view (rbx1 markers prints them); the old calibration stays");
+      return;
+    }
+    workspace_ = std::move(s);  // a new start replaces a session in progress
+    nlohmann::json j{{"markers", markers_json(*workspace_)}, {"image", {{"width", frame.cols}, {"height", frame.rows}}},
+                     {"dictionary", config_.op.marker_dictionary}, {"min_markers", config_.op.min_markers},
+                     {"in_force", in_force}};
+    if (!duplicates.empty()) j["duplicates_ignored"] = duplicates;
+    reply.result(j);
+    return;
+  }
+  if (!workspace_) {
+    reply.error("no_calibration", "no workspace calibration in progress (calibrate_workspace start)");
+    return;
+  }
+  WorkspaceSession& s = *workspace_;
+  if (a == "record") {
+    if (!find_marker(s, r.index)) {
+      std::string seen;
+      for (const auto& m : s.markers) seen += (seen.empty() ? "" : ", ") + std::to_string(m.id);
+      reply.error("unknown_marker", "marker " + std::to_string(r.index) + " was not seen at the scan pose (seen: " + seen + ")");
+      return;
+    }
+    if (!ready(reply)) return;
+    arm::Steps cur;
+    arm::Joints deg;
+    if (!current_pose(reply, cur, deg)) return;
+    arm::ToolPose tp = arm::tool_pose(config_.arm.links, deg);
+    double above = tp.z_mm - config_.arm.heights.table_z_mm;
+    if (std::fabs(above) > config_.op.touch_max_height_mm) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf, "the tool point is %.1f mm %s the table (z %.1f mm): jog it onto the marker's centre "
+                    "(within [operator] touch_max_height_mm = %g)", std::fabs(above), above > 0 ? "above" : "below",
+                    tp.z_mm, config_.op.touch_max_height_mm);
+      reply.error("not_on_table", buf);
+      return;
+    }
+    s.touched[r.index] = {{tp.x_mm, tp.y_mm}, tp.z_mm};
+    nlohmann::json remaining = nlohmann::json::array();
+    for (const auto& m : s.markers)
+      if (!s.touched.count(m.id)) remaining.push_back(m.id);
+    reply.result({{"marker", r.index}, {"px", point(find_marker(s, r.index)->centre)},
+                  {"mm", {round3(tp.x_mm), round3(tp.y_mm), round3(tp.z_mm)}}, {"recorded", s.touched.size()},
+                  {"remaining", remaining}});
+    return;
+  }
+  // fit and save: the least-squares map over the recorded markers.
+  calib::WorkspaceFit fit;
+  std::string code, error;
+  auto points = recorded_points(s);
+  if (!calib::fit_workspace(points, config_.op.min_markers, fit, code, error)) {
+    reply.error(code, error + "; the old calibration stays");
+    return;
+  }
+  nlohmann::json per = nlohmann::json::array();
+  for (size_t i = 0; i < points.size(); ++i)
+    per.push_back({{"id", points[i].id}, {"residual_mm", round3(fit.residual_mm[i])},
+                   {"loo_mm", std::isfinite(fit.loo_mm[i]) ? nlohmann::json(round3(fit.loo_mm[i])) : nlohmann::json(nullptr)}});
+  // Where the map puts every marker seen, recorded or not (a page can draw them; unrecorded ones are a check).
+  nlohmann::json predicted = nlohmann::json::array();
+  for (const auto& m : s.markers) predicted.push_back({{"id", m.id}, {"mm", point(calib::apply_map(fit.h, m.centre))}});
+  std::string reason;
+  if (fit.rms_mm > config_.op.max_rms_mm)
+    reason = "RMS residual " + std::to_string(fit.rms_mm).substr(0, 5) + " mm is above [operator] max_rms_mm = " +
+             std::to_string(config_.op.max_rms_mm).substr(0, 5);
+  else if (fit.max_loo_mm > config_.op.max_loo_mm)
+    reason = "a leave-one-out error of " + std::to_string(fit.max_loo_mm).substr(0, 5) +
+             " mm is above [operator] max_loo_mm = " + std::to_string(config_.op.max_loo_mm).substr(0, 5) +
+             " (re-record the marker with the largest)";
+  nlohmann::json result{{"model", fit.model}, {"rms_mm", round3(fit.rms_mm)},
+                        {"max_loo_mm", std::isfinite(fit.max_loo_mm) ? nlohmann::json(round3(fit.max_loo_mm)) : nlohmann::json(nullptr)},
+                        {"markers", per}, {"predicted", predicted}, {"accepted", reason.empty()},
+                        {"bounds", {{"max_rms_mm", config_.op.max_rms_mm}, {"max_loo_mm", config_.op.max_loo_mm}}}};
+  if (!reason.empty()) result["reason"] = reason;
+  if (a == "fit") {
+    reply.result(result);
+    return;
+  }
+  // save
+  if (!reason.empty()) {
+    reply.error("fit_rejected", reason + "; nothing saved, the old calibration stays");
+    return;
+  }
+  calib::WorkspaceCalibration w{fit, s.image_size, points};
+  if (!state_->ensure(error) || !calib::save_workspace(state_->path(kWorkspaceFile), w, error)) {
+    reply.error("state_failed", error);
+    return;
+  }
+  arm::CameraMount::PixelMap m;
+  for (int i = 0; i < 3; ++i)
+    for (int k = 0; k < 3; ++k) m.h[i * 3 + k] = fit.h(i, k);
+  m.width = s.image_size.width;
+  m.height = s.image_size.height;
+  config_.arm.camera.pixel_map = m;
+  workspace_.reset();
+  spdlog::info("workspace calibration saved: {} over {} markers, RMS {:.3f} mm, worst leave-one-out {:.3f} mm",
+               fit.model, points.size(), fit.rms_mm, fit.max_loo_mm);
+  result["saved"] = state_->path(kWorkspaceFile);
+  result["in_force"] = "workspace";
+  reply.result(result);
+}
+
+}  // namespace rbx1::daemon
