@@ -152,6 +152,15 @@ def test_calibration_from_touched_markers(sim, daemon_factory, tmp_path):
     on_disk = json.loads((state / "workspace.json").read_text())
     assert on_disk["format"] == "rbx1-workspace" and len(on_disk["points"]) == 8
     assert calib(d, "status")["result"] == {"active": False, "in_force": "workspace"}
+    # The guided CLI: every marker skipped, the fit refused, the session cancelled; the saved calibration stays.
+    saved_bytes = (state / "workspace.json").read_bytes()
+    r = subprocess.run([e2e.need(e2e.BIN / "rbx1"), "calibrate-workspace", "--socket", d.socket], input="s\n" * 10,
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1, (r.stdout, r.stderr)
+    assert "10 markers seen at the scan pose: 0 1 2 3 4 5 6 7 8 9" in r.stdout, r.stdout
+    assert "too_few_markers" in r.stderr and "cancelled; the old calibration stays in force" in r.stdout, r
+    assert calib(d, "status")["result"] == {"active": False, "in_force": "workspace"}
+    assert (state / "workspace.json").read_bytes() == saved_bytes
     # The empty table at the scan pose for every later scan.
     ok(d, {"cmd": "background", "frames": 2})
     d.stop()
