@@ -3,11 +3,11 @@
 #include <cmath>
 #include <cstdio>
 
-#include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
 #include "joint_steps.hpp"
 #include "kinematics.hpp"
+#include "background.hpp"
 #include "library.hpp"
 #include "machine.hpp"
 #include "pick_plan.hpp"
@@ -189,22 +189,22 @@ void Machine::job_background(Reply& reply, int frames) {
   if (frames <= 0) frames = config_.op.background_frames;
   if (!ready(reply)) return;
   if (!move_to(reply, "scan_pose", config_.arm.scan)) return;
-  // The mean of several frames: sensor noise drops by sqrt(frames), and every later scan subtracts this image.
-  cv::Mat sum, frame;
+  // The mean of several frames (perception's average_background): sensor noise drops by sqrt(frames), and every
+  // later scan subtracts this image.
+  std::vector<cv::Mat> shots;
   for (int i = 0; i < frames; ++i) {
+    cv::Mat frame;
     if (int r = camera_->read(frame); r < 0 || frame.empty()) {
       reply.error("camera_failed", camera_->describe() + ": capture failed (" + std::to_string(r) + ")");
       return;
     }
-    if (i == 0) sum = cv::Mat::zeros(frame.size(), CV_MAKETYPE(CV_64F, frame.channels()));
-    if (frame.size() != sum.size() || frame.channels() != sum.channels()) {
-      reply.error("camera_failed", camera_->describe() + ": the frame size changed during the capture");
-      return;
-    }
-    cv::accumulate(frame, sum);
+    shots.push_back(frame);
   }
   cv::Mat mean;
-  sum.convertTo(mean, CV_8U, 1.0 / frames);
+  if (std::string why; !vision::average_background(shots, mean, why)) {
+    reply.error("camera_failed", camera_->describe() + ": " + why);
+    return;
+  }
   std::string error;
   if (!state_->save_background(mean, error)) {
     reply.error("state_failed", error);
