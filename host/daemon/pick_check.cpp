@@ -62,7 +62,8 @@ bool Machine::check_pick(Reply& reply, const std::string& name, const std::strin
     std::vector<MotionStep> steps;
     nlohmann::json plan_info;
     std::string error;
-    if (!plan_pick_steps(config_.arm, st, picked, place, steps, plan_info, error)) {
+    std::pair<int, int> size{detections["image"].value("width", 0), detections["image"].value("height", 0)};
+    if (!plan_pick_steps(config_.arm, st, picked, size, place, steps, plan_info, error)) {
       if (!move_to(reply, "home", config_.arm.home)) return false;
       reply.error("pick_failed", "cannot pick \"" + name + "\" again: " + error);
       return false;

@@ -176,7 +176,7 @@ class Dispatcher {
         item = std::move(items_.front());
         items_.pop_front();
       }
-      submit_line(handler_, item.line, sink_for(item.conn));
+      submit_line(handler_, item.line, sink_for(item.conn), [conn = item.conn] { return conn->present(); });
       bool resume;
       {
         std::lock_guard lock(item.conn->mu);
