@@ -535,6 +535,17 @@ bool Machine::move_to(Reply& reply, const std::string& name, const arm::Joints& 
   return run_steps(reply, steps, result);
 }
 
+bool Machine::plan_pick(const nlohmann::json& detections, const nlohmann::json& object, const std::string& place,
+                        std::vector<MotionStep>& steps, nlohmann::json& info, std::string& error) {
+  rbx1_status_resp st{};
+  {
+    std::lock_guard lock(mutex_);
+    if (last_status_) st = *last_status_;
+  }
+  std::pair<int, int> size{detections["image"].value("width", 0), detections["image"].value("height", 0)};
+  return plan_pick_steps(config_.arm, st, object, size, place, steps, info, error);
+}
+
 bool Machine::capture_and_detect(Reply& reply, nlohmann::json& detections, std::string& report) {
   cv::Mat frame;
   int r = camera_->read(frame);
@@ -673,16 +684,10 @@ void Machine::job_pick(Reply& reply, const std::string& name, const std::string&
   }
   reply.event("identified", {{"name", name}, {"index", (*best)["index"]}, {"match_score", (*best)["match_score"]},
                              {"centroid_cm", (*best)["centroid_cm"]}, {"grip", (*best)["grip"]}});
-  rbx1_status_resp st{};
-  {
-    std::lock_guard lock(mutex_);
-    if (last_status_) st = *last_status_;
-  }
   std::vector<MotionStep> steps;
   nlohmann::json plan_info;
   std::string error;
-  std::pair<int, int> size{detections["image"].value("width", 0), detections["image"].value("height", 0)};
-  if (!plan_pick_steps(config_.arm, st, *best, size, place, steps, plan_info, error)) {
+  if (!plan_pick(detections, *best, place, steps, plan_info, error)) {
     reply.event("unreachable", {{"name", name}, {"reason", error}});
     if (!move_to(reply, "home", config_.arm.home)) return;
     reply.error("plan_failed", "cannot pick \"" + name + "\": " + error);

@@ -67,6 +67,9 @@ class Machine {
   bool move_to(Reply& reply, const std::string& name, const arm::Joints& pose, MotionResult& result);
   void hold(const std::string& why);  // mutex_ held: not ready until clear_fault
   bool run_steps(Reply& reply, const std::vector<MotionStep>& steps, MotionResult& result);
+  // The pick of `object` from `detections` to `place`, planned from the last firmware status (pick_plan.hpp).
+  bool plan_pick(const nlohmann::json& detections, const nlohmann::json& object, const std::string& place,
+                 std::vector<MotionStep>& steps, nlohmann::json& info, std::string& error);
   // Capture + detect at the scan pose; false after reply.error.
   bool capture_and_detect(Reply& reply, nlohmann::json& detections, std::string& report);
   // [daemon] verify_pick (pick_check.cpp): after a pick, a scan must no longer show the object where it was;

@@ -54,16 +54,10 @@ bool Machine::check_pick(Reply& reply, const std::string& name, const std::strin
     }
     // Again, from the fresh detection (the arm is at the scan pose it was taken from).
     picked = *left;
-    rbx1_status_resp st{};
-    {
-      std::lock_guard lock(mutex_);
-      if (last_status_) st = *last_status_;
-    }
     std::vector<MotionStep> steps;
     nlohmann::json plan_info;
     std::string error;
-    std::pair<int, int> size{detections["image"].value("width", 0), detections["image"].value("height", 0)};
-    if (!plan_pick_steps(config_.arm, st, picked, size, place, steps, plan_info, error)) {
+    if (!plan_pick(detections, picked, place, steps, plan_info, error)) {
       if (!move_to(reply, "home", config_.arm.home)) return false;
       reply.error("pick_failed", "cannot pick \"" + name + "\" again: " + error);
       return false;
