@@ -1,4 +1,5 @@
-// pick.cpp - plans the pick sequence: the heights of each stage, one IK per stage, timing and servo pulses.
+// pick.cpp - plans the pick sequence: the heights of each stage, IK per stage (straight lines split by line.hpp),
+// timing and servo pulses.
 #include "pick.hpp"
 
 #include <algorithm>
@@ -7,6 +8,7 @@
 
 #include "joint_steps.hpp"
 #include "kinematics.hpp"
+#include "line.hpp"
 
 namespace rbx1::arm {
 
@@ -40,7 +42,49 @@ void add_gripper(const ArmConfig& cfg, std::vector<Waypoint>& out, const std::st
   out.push_back(w);
 }
 
+// Appends the straight line of the tool point from where the arm stands (`at`, read by FK) to `to`, split by
+// plan_line: one move named `name` per segment, each timed by the joint speed alone (no min_move_ms: the
+// firmware's look-ahead joins the segments without stopping).
+bool add_line(const ArmConfig& cfg, std::vector<Waypoint>& out, const std::string& name, Steps& at, const Grasp& to,
+              std::string& error) {
+  const ToolPose p = tool_pose(cfg.links, steps_to_joints(cfg, at));
+  const Grasp from{p.x_mm, p.y_mm, p.z_mm, p.yaw_deg};
+  std::vector<Steps> targets;
+  std::string why;
+  if (!plan_line(cfg, at, from, to, LineBounds{}, targets, why)) {
+    error = name + ": " + why;
+    return false;
+  }
+  for (const Steps& s : targets) {
+    Waypoint w;
+    w.name = name;
+    w.kind = WaypointKind::Move;
+    w.steps = s;
+    w.joints = steps_to_joints(cfg, s);
+    if (!check_limits(cfg, w.joints, why)) {
+      error = name + ": " + why;
+      return false;
+    }
+    int64_t ms = segment_ms(cfg, steps_to_joints(cfg, at), w.joints);
+    if (ms > 65535) {
+      error = name + ": a segment would take " + std::to_string(ms) + " ms, more than MOVE allows (65535)";
+      return false;
+    }
+    w.duration_ms = uint16_t(ms);
+    out.push_back(w);
+    at = s;
+  }
+  return true;
+}
+
 }  // namespace
+
+int64_t segment_ms(const ArmConfig& cfg, const Joints& from, const Joints& to) {
+  double largest = 0;
+  for (int j = 0; j < kJoints; ++j) largest = std::max(largest, std::fabs(to[j] - from[j]));
+  int64_t ms = int64_t(std::ceil(1000.0 * largest / cfg.speeds.joint_speed_deg_s - 1e-9));
+  return std::max<int64_t>(ms, 1);
+}
 
 const char* kind_name(WaypointKind kind) { return kind == WaypointKind::Move ? "move" : "gripper"; }
 
@@ -64,10 +108,7 @@ bool gripper_pulse_us(const GripperConfig& g, double opening_mm, uint16_t& pulse
 }
 
 int64_t move_duration_ms(const ArmConfig& cfg, const Joints& from, const Joints& to) {
-  double largest = 0;
-  for (int j = 0; j < kJoints; ++j) largest = std::max(largest, std::fabs(to[j] - from[j]));
-  int64_t ms = int64_t(std::ceil(1000.0 * largest / cfg.speeds.joint_speed_deg_s - 1e-9));
-  return std::max<int64_t>(ms, cfg.speeds.min_move_ms);
+  return std::max<int64_t>(segment_ms(cfg, from, to), cfg.speeds.min_move_ms);
 }
 
 bool plan_move(const ArmConfig& cfg, const std::string& name, const Steps& from, const Joints& to, Waypoint& out,
@@ -94,7 +135,7 @@ bool plan_move(const ArmConfig& cfg, const std::string& name, const Steps& from,
 }
 
 bool plan_pick(const ArmConfig& cfg, const Steps& current, const PickObject& obj, const std::string& place_name,
-               std::vector<Waypoint>& out, std::string& error) {
+               std::vector<Waypoint>& out, std::string& error, bool lines) {
   out.clear();
   auto place_it = cfg.places.find(place_name);
   if (place_it == cfg.places.end()) {
@@ -139,16 +180,27 @@ bool plan_pick(const ArmConfig& cfg, const Steps& current, const PickObject& obj
     return true;
   };
 
+  // Approach: a straight line when the arm points down (the scan pose), keeping the tool's yaw; the wrist turns
+  // on the spot after. From any other pose a joint move keeping J6. Descend, lift and retreat are straight lines.
+  const ToolPose now = tool_pose(cfg.links, steps_to_joints(cfg, at));
   const Grasp above{obj.x_mm, obj.y_mm, approach_z, obj.yaw_deg};
-  if (!ik_move("approach", above, true)) return false;
+  if (now.tilt_deg <= LineBounds{}.tilt_deg && lines) {
+    if (!add_line(cfg, out, "approach", at, Grasp{above.x_mm, above.y_mm, above.z_mm, now.yaw_deg}, error))
+      return false;
+  } else if (!ik_move("approach", above, true)) {
+    return false;
+  }
   if (!ik_move("yaw", above, false)) return false;
   add_gripper(cfg, out, "open", at, open_us);
-  if (!ik_move("descend", Grasp{obj.x_mm, obj.y_mm, grasp_z, obj.yaw_deg}, false)) return false;
+  auto line = [&](const std::string& name, const Grasp& g) {
+    return lines ? add_line(cfg, out, name, at, g, error) : ik_move(name, g, false);
+  };
+  if (!line("descend", Grasp{obj.x_mm, obj.y_mm, grasp_z, obj.yaw_deg})) return false;
   add_gripper(cfg, out, "close", at, closed_us);
-  if (!ik_move("lift", Grasp{obj.x_mm, obj.y_mm, lift_z, obj.yaw_deg}, false)) return false;
+  if (!line("lift", Grasp{obj.x_mm, obj.y_mm, lift_z, obj.yaw_deg})) return false;
   if (!ik_move("carry", Grasp{place.x_mm, place.y_mm, carry_z, place.yaw_deg}, false)) return false;
   add_gripper(cfg, out, "release", at, open_us);
-  if (!ik_move("retreat", Grasp{place.x_mm, place.y_mm, retreat_z, place.yaw_deg}, false)) return false;
+  if (!line("retreat", Grasp{place.x_mm, place.y_mm, retreat_z, place.yaw_deg})) return false;
   if (!add_move(cfg, out, "home", at, cfg.home, error)) return false;
   return true;
 }

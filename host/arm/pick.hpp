@@ -1,5 +1,7 @@
 // pick.hpp - the pick of the paper as firmware queue entries: approach, yaw, open, descend, close, lift, carry,
-// release, retreat, home. Moves are absolute step targets; gripper entries are servo pulses.
+// release, retreat, home. Moves are absolute step targets; gripper entries are servo pulses. The approach (from a
+// pose pointing down), descend, lift and retreat are straight lines of the tool point, one move per segment, all
+// named after their phase.
 #pragma once
 #include <cstdint>
 #include <string>
@@ -34,9 +36,10 @@ const char* kind_name(WaypointKind kind);
 
 // The whole pick from the arm's current steps to home, for the named place (arm.places). false + error for an
 // unknown place, an opening wider than the gripper, or a waypoint out of reach or limits (the error starts with
-// the waypoint's name: "descend: target (...) mm is out of reach: ...").
+// the waypoint's name: "descend: target (...) mm is out of reach: ..."). lines = false plans every phase as one
+// joint move (the pick before straight lines: tools/bench/motion compares the two).
 bool plan_pick(const ArmConfig& cfg, const Steps& current, const PickObject& object, const std::string& place,
-               std::vector<Waypoint>& out, std::string& error);
+               std::vector<Waypoint>& out, std::string& error, bool lines = true);
 
 // One joint move from `from` to the pose `to` (degrees), timed by move_duration_ms: for going to scan or home.
 // false + error when `to` is outside the joint limits or the move would outlast MOVE.duration_ms (65535 ms).
@@ -50,7 +53,9 @@ Steps scan_steps(const ArmConfig& cfg);
 // nearest microsecond. false + error for an opening below 0 or above max_opening_mm.
 bool gripper_pulse_us(const GripperConfig& g, double opening_mm, uint16_t& pulse_us, std::string& error);
 
-// ceil(1000 * largest joint change / joint_speed_deg_s) ms, at least min_move_ms (may exceed 65535: check).
+// ceil(1000 * largest joint change / joint_speed_deg_s) ms, at least 1 (a straight line's segment).
+int64_t segment_ms(const ArmConfig& cfg, const Joints& from, const Joints& to);
+// segment_ms, at least min_move_ms (may exceed 65535: check).
 int64_t move_duration_ms(const ArmConfig& cfg, const Joints& from, const Joints& to);
 
 }  // namespace rbx1::arm

@@ -1,9 +1,11 @@
-// pick_test.cpp - the pick's waypoints: order, kinds, heights, yaw, gripper pulses, timing and errors.
+// pick_test.cpp - the pick's waypoints: phases in order, kinds, heights, yaw, gripper pulses, timing, the straight
+// lines (checked with FK, independently of line.cpp) and errors.
 #include "pick.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
 
 #include "joint_steps.hpp"
 #include "kinematics.hpp"
@@ -17,6 +19,25 @@ double axis_diff(double a, double b) { return std::fabs(normalize_axis_deg(a - b
 
 const char* const kNames[] = {"approach", "yaw",   "open",    "descend", "close",
                               "lift",     "carry", "release", "retreat", "home"};
+
+// The phases in order (consecutive waypoints of one name are one phase) and each phase's last waypoint.
+std::vector<std::string> phases(const std::vector<Waypoint>& w) {
+  std::vector<std::string> out;
+  for (const auto& x : w)
+    if (out.empty() || out.back() != x.name) out.push_back(x.name);
+  return out;
+}
+const Waypoint& last(const std::vector<Waypoint>& w, const std::string& name) {
+  for (size_t i = w.size(); i-- > 0;)
+    if (w[i].name == name) return w[i];
+  ADD_FAILURE() << "no waypoint " << name;
+  return w.front();
+}
+size_t count(const std::vector<Waypoint>& w, const std::string& name) {
+  size_t n = 0;
+  for (const auto& x : w) n += x.name == name;
+  return n;
+}
 
 }  // namespace
 
@@ -74,9 +95,12 @@ TEST(Pick, WaypointsInOrderWithTheirContents) {
   std::string error;
   const Steps start = scan_steps(c);
   ASSERT_TRUE(plan_pick(c, start, obj, "tray", w, error)) << error;
-  ASSERT_EQ(w.size(), std::size(kNames));
+  ASSERT_EQ(phases(w), std::vector<std::string>(std::begin(kNames), std::end(kNames)));
+  // Straight lines are split into several moves; the joint moves and gripper entries are one each.
+  for (const char* n : {"yaw", "open", "close", "carry", "release", "home"}) EXPECT_EQ(count(w, n), 1u) << n;
+  for (const char* n : {"approach", "descend", "lift", "retreat"}) EXPECT_GE(count(w, n), 1u) << n;
+  EXPECT_GT(count(w, "approach"), 4u) << "the long slanted approach from the scan pose";
   for (size_t i = 0; i < w.size(); ++i) {
-    EXPECT_EQ(w[i].name, kNames[i]);
     bool gripper = w[i].name == "open" || w[i].name == "close" || w[i].name == "release";
     EXPECT_EQ(w[i].kind, gripper ? WaypointKind::Gripper : WaypointKind::Move) << w[i].name;
     EXPECT_EQ(w[i].joints, steps_to_joints(c, w[i].steps)) << w[i].name;
@@ -85,44 +109,110 @@ TEST(Pick, WaypointsInOrderWithTheirContents) {
       EXPECT_EQ(w[i].dwell_ms, 500);
       EXPECT_EQ(w[i].duration_ms, 0);
     } else {
-      EXPECT_GE(w[i].duration_ms, 200) << w[i].name;
+      // Joint moves last at least min_move_ms; a line's segments by the joint speed alone.
+      const Steps& from = i ? w[i - 1].steps : start;
+      int64_t seg = segment_ms(c, steps_to_joints(c, from), w[i].joints);
+      bool line = w[i].name == "approach" || w[i].name == "descend" || w[i].name == "lift" || w[i].name == "retreat";
+      EXPECT_EQ(w[i].duration_ms, line ? seg : std::max<int64_t>(seg, 200)) << w[i].name << " " << i;
       EXPECT_EQ(w[i].pulse_us, 0) << w[i].name;
       std::string limit;
       EXPECT_TRUE(check_limits(c, w[i].joints, limit)) << w[i].name << ": " << limit;
     }
   }
-  EXPECT_STREQ(kind_name(w[2].kind), "gripper");
+  EXPECT_STREQ(kind_name(last(w, "open").kind), "gripper");
   EXPECT_STREQ(kind_name(w[0].kind), "move");
   // Opening 20 + margin 5 = 25 mm -> 1500 us; closing squeezes to the closed pulse; release opens the same.
-  EXPECT_EQ(w[2].pulse_us, 1500);
-  EXPECT_EQ(w[4].pulse_us, 1000);
-  EXPECT_EQ(w[7].pulse_us, 1500);
+  EXPECT_EQ(last(w, "open").pulse_us, 1500);
+  EXPECT_EQ(last(w, "close").pulse_us, 1000);
+  EXPECT_EQ(last(w, "release").pulse_us, 1500);
   EXPECT_EQ(w.back().steps, home_steps(c));
 
-  // Heights of the tool point; grasp: 30 mm object, 15 mm finger pads -> fingertips 15 mm above the table.
-  auto pose = [&](int i) { return tool_pose(c.links, w[i].joints); };
+  // Heights of the tool point at each phase's end; grasp: 30 mm object, 15 mm finger pads -> fingertips 15 mm
+  // above the table.
+  auto pose = [&](const char* name) { return tool_pose(c.links, last(w, name).joints); };
   const double tol = 0.3;  // whole steps
-  EXPECT_NEAR(pose(0).x_mm, t.x_mm, tol);
-  EXPECT_NEAR(pose(0).y_mm, t.y_mm, tol);
-  EXPECT_NEAR(pose(0).z_mm, 30 + 40, tol);
-  EXPECT_EQ(w[0].steps[5], start[5]) << "the approach keeps the wrist roll";
-  for (int j = 0; j < 5; ++j) EXPECT_EQ(w[1].steps[j], w[0].steps[j]) << "the yaw turns only the wrist roll";
-  EXPECT_NEAR(pose(3).z_mm, 15, tol);
-  EXPECT_NEAR(pose(3).x_mm, t.x_mm, tol);
-  EXPECT_NEAR(pose(5).z_mm, 15 + 30 + 60, tol);
+  EXPECT_NEAR(pose("approach").x_mm, t.x_mm, tol);
+  EXPECT_NEAR(pose("approach").y_mm, t.y_mm, tol);
+  EXPECT_NEAR(pose("approach").z_mm, 30 + 40, tol);
+  // The approach keeps the tool's yaw of the scan pose; the yaw turns only the wrist roll.
+  EXPECT_LT(axis_diff(pose("approach").yaw_deg, tool_pose(c.links, c.scan).yaw_deg), 0.5);
+  for (int j = 0; j < 5; ++j) EXPECT_EQ(last(w, "yaw").steps[j], last(w, "approach").steps[j]) << j;
+  EXPECT_NEAR(pose("descend").z_mm, 15, tol);
+  EXPECT_NEAR(pose("descend").x_mm, t.x_mm, tol);
+  EXPECT_NEAR(pose("lift").z_mm, 15 + 30 + 60, tol);
   // The gripper's yaw at the grasp is the grip angle (mod 180) mapped to the base frame.
-  for (int i : {1, 3, 5}) {
-    EXPECT_LT(axis_diff(pose(i).yaw_deg, t.yaw_deg), 0.06) << kNames[i];
-    EXPECT_LT(pose(i).tilt_deg, 0.05) << kNames[i];
+  for (const char* n : {"yaw", "descend", "lift"}) {
+    EXPECT_LT(axis_diff(pose(n).yaw_deg, t.yaw_deg), 0.06) << n;
+    EXPECT_LT(pose(n).tilt_deg, 0.05) << n;
   }
   // Carry: over the tray (150, 250, 5), object bottom 60 mm above it; release yaw = the tray's yaw.
   const Place& tray = c.places.at("tray");
-  EXPECT_NEAR(pose(6).x_mm, tray.x_mm, tol);
-  EXPECT_NEAR(pose(6).y_mm, tray.y_mm, tol);
-  EXPECT_NEAR(pose(6).z_mm, 5 + 15 + 60, tol);
-  EXPECT_LT(axis_diff(pose(6).yaw_deg, tray.yaw_deg), 0.06);
-  EXPECT_NEAR(pose(8).z_mm, 5 + 15 + 60 + 40, tol);
-  EXPECT_NEAR(pose(8).x_mm, tray.x_mm, tol);
+  EXPECT_NEAR(pose("carry").x_mm, tray.x_mm, tol);
+  EXPECT_NEAR(pose("carry").y_mm, tray.y_mm, tol);
+  EXPECT_NEAR(pose("carry").z_mm, 5 + 15 + 60, tol);
+  EXPECT_LT(axis_diff(pose("carry").yaw_deg, tray.yaw_deg), 0.06);
+  EXPECT_NEAR(pose("retreat").z_mm, 5 + 15 + 60 + 40, tol);
+  EXPECT_NEAR(pose("retreat").x_mm, tray.x_mm, tol);
+}
+
+// The descend, lift and retreat, read through FK alone: every step target, and the joint-linear path between
+// consecutive targets (what the firmware executes), stays within 0.2 mm of the vertical line through the object
+// (the place) and within 0.5 deg of its yaw, pointing down.
+TEST(Pick, VerticalPhasesAreStraightLinesWithinTheBound) {
+  const ArmConfig c;
+  for (auto [u, v, grip, height] : {std::tuple{9.0, 6.0, -50.0, 30.0}, {1.0, 1.0, 80.0, 0.0}, {19.0, 14.0, 10.0, 60.0},
+                                    {3.0, 13.0, -89.0, 20.0}}) {
+    TablePoint t = vision_to_base(c, Eigen::Vector2d(u, v), grip);
+    std::vector<Waypoint> w;
+    std::string error;
+    ASSERT_TRUE(plan_pick(c, scan_steps(c), PickObject{t.x_mm, t.y_mm, t.yaw_deg, 20.0, height}, "tray", w, error))
+        << error;
+    const Place& tray = c.places.at("tray");
+    std::map<std::string, std::tuple<double, double, double>> axis{
+        {"descend", {t.x_mm, t.y_mm, t.yaw_deg}}, {"lift", {t.x_mm, t.y_mm, t.yaw_deg}},
+        {"retreat", {tray.x_mm, tray.y_mm, tray.yaw_deg}}};
+    for (const auto& [name, line] : axis) {
+      auto [x, y, yaw] = line;
+      double worst_mm = 0, worst_yaw = 0, worst_tilt = 0;
+      size_t segments = 0;
+      for (size_t i = 1; i < w.size(); ++i) {
+        if (w[i].name != name) continue;
+        ++segments;
+        const Joints a = steps_to_joints(c, w[i - 1].steps), b = w[i].joints;
+        for (int k = 0; k <= 50; ++k) {  // k = 50: the step target itself
+          Joints q{};
+          for (int j = 0; j < kJoints; ++j) q[j] = a[j] + (b[j] - a[j]) * k / 50.0;
+          ToolPose p = tool_pose(c.links, q);
+          worst_mm = std::max(worst_mm, std::hypot(p.x_mm - x, p.y_mm - y));
+          worst_yaw = std::max(worst_yaw, axis_diff(p.yaw_deg, yaw));
+          worst_tilt = std::max(worst_tilt, p.tilt_deg);
+        }
+      }
+      EXPECT_GE(segments, 1u) << name;
+      EXPECT_LE(worst_mm, 0.2) << name << " at (" << u << ", " << v << ") cm";
+      EXPECT_LE(worst_yaw, 0.5) << name;
+      EXPECT_LE(worst_tilt, 0.5) << name;
+    }
+  }
+}
+
+// The joint-move pick (lines = false): the same phases, one move each, and the same final poses within steps.
+TEST(Pick, JointMovePickHasOneMovePerPhase) {
+  const ArmConfig c;
+  TablePoint t = vision_to_base(c, Eigen::Vector2d(9.0, 6.0), -50);
+  std::vector<Waypoint> lines, joints;
+  std::string error;
+  ASSERT_TRUE(plan_pick(c, scan_steps(c), PickObject{t.x_mm, t.y_mm, t.yaw_deg, 20.0, 30.0}, "tray", lines, error));
+  ASSERT_TRUE(plan_pick(c, scan_steps(c), PickObject{t.x_mm, t.y_mm, t.yaw_deg, 20.0, 30.0}, "tray", joints, error,
+                        false));
+  ASSERT_EQ(joints.size(), std::size(kNames));
+  EXPECT_EQ(phases(joints), phases(lines));
+  for (const char* n : {"descend", "lift", "carry", "retreat", "home"}) {
+    ToolPose a = tool_pose(c.links, last(lines, n).joints), b = tool_pose(c.links, last(joints, n).joints);
+    EXPECT_NEAR(a.x_mm, b.x_mm, 0.3) << n;
+    EXPECT_NEAR(a.y_mm, b.y_mm, 0.3) << n;
+    EXPECT_NEAR(a.z_mm, b.z_mm, 0.3) << n;
+  }
 }
 
 TEST(Pick, GripperYawIsTheGripAngleModulo180) {
@@ -133,7 +223,7 @@ TEST(Pick, GripperYawIsTheGripAngleModulo180) {
     std::string error;
     ASSERT_TRUE(plan_pick(c, home_steps(c), PickObject{t.x_mm, t.y_mm, t.yaw_deg, 10, 10}, "tray", w, error))
         << error;
-    ToolPose p = tool_pose(c.links, w[3].joints);
+    ToolPose p = tool_pose(c.links, last(w, "descend").joints);
     EXPECT_LT(axis_diff(p.yaw_deg, t.yaw_deg), 0.06) << grip;
     // The default mount turns image angles by 90 deg and mirrors them: base yaw = 90 - image angle (mod 180).
     EXPECT_LT(axis_diff(p.yaw_deg, 90 - grip), 0.06) << grip;
@@ -145,7 +235,7 @@ TEST(Pick, ShallowObjectGraspedAtTheFingerClearance) {
   std::vector<Waypoint> w;
   std::string error;
   ASSERT_TRUE(plan_pick(c, home_steps(c), PickObject{280, -30, 10, 8, 5}, "tray", w, error)) << error;
-  EXPECT_NEAR(tool_pose(c.links, w[3].joints).z_mm, 2, 0.3);
+  EXPECT_NEAR(tool_pose(c.links, last(w, "descend").joints).z_mm, 2, 0.3);
 }
 
 TEST(Pick, OpeningWiderThanTheGripperIsRefused) {
@@ -157,7 +247,7 @@ TEST(Pick, OpeningWiderThanTheGripperIsRefused) {
   EXPECT_TRUE(w.empty());
   // Within the gripper but not with the margin: opens fully.
   ASSERT_TRUE(plan_pick(c, home_steps(c), PickObject{280, 0, 0, 48, 10}, "tray", w, error)) << error;
-  EXPECT_EQ(w[2].pulse_us, 2000);
+  EXPECT_EQ(last(w, "open").pulse_us, 2000);
 }
 
 TEST(Pick, Errors) {

@@ -36,20 +36,22 @@ def assert_stopped(d, sim, fault):
 
 
 def assert_interrupted(events, sim, fw, step):
-    """The move that was executing never completed: the firmware's log of completed entries ends before it (and
-    counts exactly moves_done entries), and the arm stands short of its target."""
+    """The move that was executing never completed: the firmware's log of completed entries is the plan's prefix
+    (and counts exactly moves_done entries), the first entry missing from it is one of the phase `step` (a straight
+    line is several moves of one name), and the arm stands short of that entry's target."""
     planned = e2e.planned_waypoints(events)
-    index = next(i for i, w in enumerate(planned) if w["name"] == step)
-    target = planned[index]["target"]
     log = sim.moves()
     assert len(log) == fw["moves_done"], (len(log), fw)
-    assert all(not (e["kind"] == "move" and e["target"] == target) for e in log), f"{step} completed"
     # The entries before it (and the scan pose move) did complete: the log is the plan's prefix.
     done = [(e["kind"], e["target"] if e["kind"] == "move" else e.get("pulse_us")) for e in log[1:]]
+    index = len(done)
     want = [(w["kind"], w["target"] if w["kind"] == "move" else w["pulse_us"]) for w in planned[:index]]
     assert done == want, (done, want)
+    assert index < len(planned) and planned[index]["name"] == step, (index, [w["name"] for w in planned])
+    target = planned[index]["target"]
     assert fw["position"] != target, f"the arm reached the {step} target"
-    assert not e2e.events_named([e for e in events if e.get("name") == step], "step_done"), f"{step} reported done"
+    reported = [e for e in e2e.events_named(events, "step_done") if e.get("name") == step]
+    assert len(reported) == sum(1 for w in planned[:index] if w["name"] == step), f"{step} reported done"
 
 
 def test_estop_request_mid_move(sim, daemon_factory):
