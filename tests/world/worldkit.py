@@ -1,6 +1,7 @@
 """worldkit.py - the closed-loop kit: make a world (tools/world/make-world), run rbx1-world (rbx1-simfw inside),
-configure rbx1d for it (lens calibration and nominal camera mapping from the world, a fast arm), pick, and read
-the world's truth. Used by tests/world and tools/bench/world."""
+configure rbx1d for it (lens calibration and nominal camera mapping from the world, a fast arm), calibrate the
+workspace as an operator would (the marker sheet on the table, the tool point jogged onto each marker by eye, fit,
+save), pick, and read the world's truth. Used by tests/world and tools/bench/world."""
 import json
 import os
 import socket
@@ -17,6 +18,9 @@ MAKE_WORLD = ROOT / "tools" / "world" / "make-world"
 TIME_SCALE = 4.0        # rbx1-simfw's clock runs this much faster than the wall clock
 HEARTBEAT_MS = 8000     # the firmware's heartbeat timeout (simulated ms): a loaded test machine may stall the host
 STATUS_POLL_MS = 20     # the daemon's polling while moving (80 simulated ms)
+TOUCH_Z_MM = 0.5        # an operator lowers the tool point until it just touches the marker
+TOUCH_TOL_MM = 0.15     # and judges the touch by eye to this
+TOUCH_FLOOR_MM = 0.2    # or, when the daemon will not go lower, this far above the daemon's idea of the table
 
 
 def make_world(path, seed, objects="5-10", errors=(1.0, 5.0, 3.0), k1=-0.08, drift=0.05, classes=None):
@@ -46,10 +50,19 @@ class World:
         self.time_scale = time_scale
 
     def state(self):
+        return json.loads(self.ask("state"))
+
+    def markers(self, on):
+        """The operator lays the marker sheet on the table (the objects set aside) or takes it away."""
+        reply = self.ask("markers on" if on else "markers off")
+        if reply.strip() != "ok":
+            raise AssertionError(f"rbx1-world: {reply.strip()}")
+
+    def ask(self, request):
         s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         s.settimeout(10)
         s.connect(self.camera[len("unix:"):])
-        s.sendall(b"state\n")
+        s.sendall(request.encode() + b"\n")
         buf = b""
         while not buf.endswith(b"\n"):
             chunk = s.recv(1 << 20)
@@ -57,7 +70,7 @@ class World:
                 break
             buf += chunk
         s.close()
-        return json.loads(buf)
+        return buf.decode()
 
     def stop(self):
         if self.proc.poll() is None:
@@ -105,6 +118,7 @@ def daemon_config(tmp, scene_path, scene, camera):
     arm = cfg.setdefault("arm", {})
     arm.setdefault("speeds", {})["joint_speed_deg_s"] = e2e.FAST_DEG_S
     arm["camera"] = arm_camera
+    cfg["operator"] = {"jog_max_mm": 500.0, "jog_max_deg": 180.0}
     arm["places"] = {p["name"]: {"x_mm": p["x_mm"], "y_mm": p["y_mm"], "z_mm": p.get("z_mm", 0.0),
                                  "yaw_deg": p.get("yaw_deg", 0.0)} for p in scene["places"]}
     return cfg
@@ -135,6 +149,67 @@ class Cell:
     def stop(self):
         self.daemon.stop()
         return self.world.stop()
+
+    def ok(self, req):
+        events, final = self.daemon.request(req)
+        if "result" not in final:
+            raise AssertionError(f"{req}: {final}")
+        return final["result"]
+
+    def touch(self, x, y, z=TOUCH_Z_MM, tol_mm=TOUCH_TOL_MM):
+        """Jogs the tool point onto (x, y, z) mm as an operator does, judging by eye (the world's true tool point,
+        not the daemon's belief): up to 30 mm above the table, across, down, then small corrections. Where the
+        daemon believes the tool lower than it is (link errors) it refuses to go below its table: the operator
+        stops TOUCH_FLOOR_MM above the daemon's table then. Returns the number of jogs."""
+        jogs = 0
+
+        def tool():
+            return self.world.state()["arm"]["tool_mm"]
+
+        def jog(d):
+            r = self.ok({"cmd": "jog", "mm": d})
+            return r["tool"]["z_mm"]
+
+        t = tool()
+        believed_z = None
+        if t[2] < 30.0:
+            believed_z = jog([0.0, 0.0, 30.0 - t[2]])
+            jogs += 1
+        t = tool()
+        believed_z = jog([x - t[0], y - t[1], 0.0])
+        jogs += 1
+        for _ in range(6):
+            t = tool()
+            dz = max(z - t[2], TOUCH_FLOOR_MM - believed_z)
+            d = [x - t[0], y - t[1], dz]
+            if max(abs(v) for v in d) <= tol_mm:
+                return jogs
+            believed_z = jog(d)
+            jogs += 1
+        raise AssertionError(f"the tool point did not reach ({x}, {y}, {z}) mm by eye: at {tool()}")
+
+    def calibrate_workspace(self):
+        """issue 11's workspace calibration in the world: the sheet on the table, `start` at the scan pose, each
+        marker the camera found touched and recorded, `fit`, `save`, the sheet taken away. Returns the fit's
+        reply (rms_mm, max_loo_mm, markers) with the markers seen and the jogs made."""
+        self.world.markers(True)
+        truth = {m["id"]: m for m in self.world.state()["markers"]}
+        start = self.ok({"cmd": "calibrate_workspace", "action": "start"})
+        seen = [m["id"] for m in start["markers"]]
+        jogs = 0
+        for i in seen:
+            jogs += self.touch(truth[i]["x_mm"], truth[i]["y_mm"])
+            self.ok({"cmd": "calibrate_workspace", "action": "record", "marker": i})
+        self.ok({"cmd": "jog", "mm": [0.0, 0.0, 30.0]})  # off the table before the scan pose
+        fit = self.ok({"cmd": "calibrate_workspace", "action": "fit"})
+        if fit.get("accepted"):
+            fit["saved"] = self.ok({"cmd": "calibrate_workspace", "action": "save"}).get("saved")
+        else:
+            self.ok({"cmd": "calibrate_workspace", "action": "cancel"})
+        self.world.markers(False)
+        fit["seen"] = seen
+        fit["jogs"] = jogs
+        return fit
 
 
 def pick_all(cell, place_of=lambda i, obj: "tray" if i % 2 == 0 else "bin"):

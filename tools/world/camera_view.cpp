@@ -131,12 +131,15 @@ cv::Mat render_frame(const Scene& scene, const Eigen::Isometry3d& pose, uint64_t
     pr.fill(img, densify(rect(p.x_mm, p.y_mm, p.yaw_deg, p.size_x_mm + 8, p.size_y_mm + 8), p.z_mm), bgr(p.bgr, 0.7));
     pr.fill(img, densify(rect(p.x_mm, p.y_mm, p.yaw_deg, p.size_x_mm, p.size_y_mm), p.z_mm), bgr(p.bgr));
   }
-  for (const Marker& m : scene.markers) draw_marker(pr, img, m);
+  if (scene.markers_on_table)
+    for (const Marker& m : scene.markers) draw_marker(pr, img, m);
+  static const std::vector<Object> kNone;
+  const std::vector<Object>& objects = scene.markers_on_table ? kNone : scene.objects;
 
   // Shadows: each object's footprint swept away from the light to where its top edge's shadow falls.
   cv::Mat shadow(img.size(), CV_8U, cv::Scalar(0));
   const double el = rad(li.shadow_elevation_deg), az = rad(li.shadow_azimuth_deg);
-  for (const Object& o : scene.objects) {
+  for (const Object& o : objects) {
     Polygon base = placed_outline(o);
     double reach = o.height_mm / std::tan(el);
     Eigen::Vector2d off(-std::cos(az) * reach, -std::sin(az) * reach);
@@ -161,7 +164,7 @@ cv::Mat render_frame(const Scene& scene, const Eigen::Isometry3d& pose, uint64_t
 
   // Objects, farthest from the camera first: the sides (darker) then the top face.
   std::vector<const Object*> order;
-  for (const Object& o : scene.objects) order.push_back(&o);
+  for (const Object& o : objects) order.push_back(&o);
   Eigen::Isometry3d inv = pose.inverse();
   std::sort(order.begin(), order.end(), [&inv](const Object* a, const Object* b) {
     return (inv * Eigen::Vector3d(a->x_mm, a->y_mm, a->z_mm)).norm() > (inv * Eigen::Vector3d(b->x_mm, b->y_mm, b->z_mm)).norm();

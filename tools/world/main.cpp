@@ -73,6 +73,18 @@ json arm_camera_json(const rbx1::world::Scene& s) {
           {"rotation_deg", std::round(rot * 1000) / 1000}, {"flip_y", flip}};
 }
 
+// The table corners seen by a camera at the scan pose (pixel corners through the pinhole, mm, clockwise on screen).
+json view_json(const rbx1::world::Scene& s, const rbx1::arm::Links& links, const rbx1::world::Camera& c) {
+  using namespace rbx1::world;
+  Eigen::Isometry3d pose = camera_pose(links, c, s.nominal.scan);
+  json out = json::array();
+  for (auto [u, v] : {std::pair{0.0, 0.0}, {c.width - 1.0, 0.0}, {c.width - 1.0, c.height - 1.0}, {0.0, c.height - 1.0}}) {
+    Eigen::Vector2d p = pixel_on_table(c, pose, u, v);
+    out.push_back({std::round(p.x() * 100) / 100, std::round(p.y() * 100) / 100});
+  }
+  return out;
+}
+
 int listen_unix(const std::string& path, std::string& error) {
   sockaddr_un a{};
   a.sun_family = AF_UNIX;
@@ -173,6 +185,9 @@ int main(int argc, char** argv) {
                  "write the lens + nominal scale calibration for rbx1d's [vision] calibration, print the nominal "
                  "[arm.camera] mapping as JSON, and exit");
   app.add_option("--snapshot", snapshot, "write the frame seen at the scan pose to this PNG and exit");
+  bool view = false;
+  app.add_flag("--view", view,
+               "print the table corners (mm) seen by the true and the nominal camera at the scan pose as JSON, and exit");
   CLI11_PARSE(app, argc, argv);
 
   rbx1::world::Scene scene;
@@ -189,6 +204,12 @@ int main(int argc, char** argv) {
       return 2;
     }
     std::cout << json{{"arm_camera", arm_camera_json(scene)}}.dump() << "\n";
+    return 0;
+  }
+  if (view) {
+    std::cout << json{{"true_view_mm", view_json(scene, scene.links, scene.camera)},
+                      {"nominal_view_mm", view_json(scene, scene.nominal.links, scene.nominal_camera)}}.dump()
+              << "\n";
     return 0;
   }
   if (!snapshot.empty()) {
@@ -318,8 +339,12 @@ int main(int argc, char** argv) {
           s["frames"] = frames;
           std::string text = s.dump() + "\n";
           ok = send_all(fd, text.data(), text.size());
+        } else if (req == "markers on" || req == "markers off") {
+          std::string err;
+          std::string text = world.set_markers_on_table(req == "markers on", err) ? "ok\n" : "error " + err + "\n";
+          ok = send_all(fd, text.data(), text.size());
         } else {
-          std::string text = "error unknown request \"" + req + "\" (frame, state)\n";
+          std::string text = "error unknown request \"" + req + "\" (frame, state, markers on, markers off)\n";
           ok = send_all(fd, text.data(), text.size());
         }
       }

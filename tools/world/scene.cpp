@@ -160,6 +160,10 @@ void parse(const json& j, Scene& s) {
       s.places.push_back(pl);
     }
   }
+  if (j.contains("markers_on_table")) {
+    if (!j["markers_on_table"].is_boolean()) throw Bad("markers_on_table: must be true or false");
+    s.markers_on_table = j["markers_on_table"].get<bool>();
+  }
   if (j.contains("markers")) {
     if (!j["markers"].is_array()) throw Bad("markers: must be an array");
     for (size_t i = 0; i < j["markers"].size(); ++i) {

@@ -87,6 +87,8 @@ struct Scene {
   std::vector<Object> objects;
   std::vector<Place> places;
   std::vector<Marker> markers;
+  // What lies on the table: the marker sheet (the objects set aside, neither seen nor touched) or the objects.
+  bool markers_on_table = false;
 };
 
 // Loads and checks a scene file; false + "PATH: reason" (naming the field). Draws the errors from the seed.

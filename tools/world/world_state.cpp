@@ -104,6 +104,17 @@ World::World(Scene scene) : scene_(std::move(scene)), initial_(scene_.objects) {
   opening_mm_ = 0;
 }
 
+bool World::set_markers_on_table(bool on, std::string& error) {
+  if (held_.index >= 0) {
+    error = "the gripper holds object " + std::to_string(scene_.objects[size_t(held_.index)].id) +
+            ": release it before changing the table";
+    return false;
+  }
+  if (on != scene_.markers_on_table) emit({{"event", "table"}, {"markers_on_table", on}});
+  scene_.markers_on_table = on;
+  return true;
+}
+
 Eigen::Isometry3d World::tool(const arm::Joints& deg) const { return arm::fk(scene_.links, deg); }
 
 void World::emit(json ev) {
@@ -177,7 +188,7 @@ void World::at_pose(const arm::Joints& deg, bool, std::vector<int>& hit) {
     emit({{"event", "collision"}, {"object", nullptr}, {"class", "table"},
           {"tool_mm", {r2(t.translation().x()), r2(t.translation().y()), r2(tip)}}});
   }
-  for (size_t k = 0; k < scene_.objects.size(); ++k) {
+  for (size_t k = 0; k < scene_.objects.size() && !scene_.markers_on_table; ++k) {
     const Object& o = scene_.objects[k];
     if (int(k) == held_.index || std::count(hit.begin(), hit.end(), int(k))) continue;
     if (tip >= o.z_mm + o.height_mm || tip + g.finger_length_mm <= o.z_mm) continue;
@@ -205,7 +216,7 @@ void World::gripper_to(double opening) {
     // Closing: the first object between the fingers, within their height, is grasped when both fingers are
     // outside it (they straddle it) and it is at least as wide as where the fingers stop.
     std::string why = "nothing between the fingers";
-    for (size_t k = 0; k < scene_.objects.size(); ++k) {
+    for (size_t k = 0; k < scene_.objects.size() && !scene_.markers_on_table; ++k) {
       Object& o = scene_.objects[k];
       if (tip >= o.z_mm + o.height_mm || tip + g.finger_length_mm <= o.z_mm) continue;
       double lo, hi;
@@ -279,6 +290,11 @@ json World::state() const {
                     {"moved_mm", r2(std::hypot(o.x_mm - initial_[k].x_mm, o.y_mm - initial_[k].y_mm))}});
   }
   s["objects"] = objs;
+  s["markers_on_table"] = scene_.markers_on_table;
+  json marks = json::array();
+  for (const Marker& m : scene_.markers)
+    marks.push_back({{"id", m.id}, {"x_mm", m.x_mm}, {"y_mm", m.y_mm}, {"size_mm", m.size_mm}});
+  s["markers"] = marks;
   s["counts"] = {{"grasps", grasps_}, {"closed_empty", closed_empty_}, {"collisions", collisions_},
                  {"placements", placements_}};
   s["events"] = events_;

@@ -21,6 +21,10 @@ class World {
   // false + error for a line that is not such an entry.
   bool apply_log_line(const std::string& line, std::string& error);
 
+  // The operator lays the marker sheet on the table for a workspace calibration (the objects set aside: neither
+  // seen nor touched) or takes it away (the objects back where they were). false + error while holding an object.
+  bool set_markers_on_table(bool on, std::string& error);
+
   // Every event (grasp, closed_empty, collision, placement, dropped) goes here as it happens.
   void on_event(std::function<void(const nlohmann::json&)> f) { on_event_ = std::move(f); }
 

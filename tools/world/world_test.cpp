@@ -3,6 +3,7 @@
 #include <fstream>
 
 #include <gtest/gtest.h>
+#include <opencv2/aruco.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "camera_view.hpp"
@@ -219,6 +220,51 @@ TEST(Camera, TheBarIsDarkWhereTheMappingPutsIt) {
   // 30 mm along base x = 120 px along image y; 10 mm across = 40 px (top face, magnified).
   EXPECT_NEAR(std::sqrt(m.mu02 / m.m00 * 12), 120 * k, 3);
   EXPECT_NEAR(std::sqrt(m.mu20 / m.m00 * 12), 40 * k, 3);
+}
+
+TEST(Table, TheMarkerSheetSetsTheObjectsAsideAndIsSeenWhereItLies) {
+  Scene s = bar_scene();
+  s.light.noise_sigma = 0;
+  Marker m;
+  m.id = 7;
+  m.x_mm = 320;
+  m.y_mm = -40;
+  m.size_mm = 24;
+  s.markers.push_back(m);
+  World w(s);
+  std::string e;
+  ASSERT_TRUE(w.set_markers_on_table(true, e)) << e;
+  // The camera sees the marker, not the bar: (320, -40) mm -> pixel ((100 + 40) * 4, (370 - 320) * 4).
+  auto pose = camera_pose(s.links, s.camera, s.nominal.scan);
+  cv::Mat img = render_frame(w.scene(), pose, 0);
+  std::vector<int> ids;
+  std::vector<std::vector<cv::Point2f>> corners;
+  cv::aruco::detectMarkers(img, cv::aruco::getPredefinedDictionary(cv::aruco::DICT_4X4_50), corners, ids);
+  ASSERT_EQ(ids, std::vector<int>{7});
+  cv::Point2f c = (corners[0][0] + corners[0][1] + corners[0][2] + corners[0][3]) / 4;
+  EXPECT_NEAR(c.x, 560, 1.0);
+  EXPECT_NEAR(c.y, 200, 1.0);
+  cv::Mat grey;
+  cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY);
+  EXPECT_GT(grey.at<uchar>(280, 400), 150) << "the bar is set aside";
+  // Fingers coming down where the bar was touch nothing; closing there grasps nothing.
+  Driver d(w);
+  d.move_to(300, 0, 60, 90);
+  d.gripper(15);
+  d.move_to(300, 0, 2, 90);
+  d.gripper(0);
+  auto st = w.state();
+  EXPECT_EQ(count(st, "collisions"), 0);
+  EXPECT_EQ(count(st, "grasps"), 0);
+  EXPECT_TRUE(st["markers_on_table"].get<bool>());
+  // The sheet taken away: the bar is back and grasped.
+  ASSERT_TRUE(w.set_markers_on_table(false, e)) << e;
+  d.gripper(15);
+  d.gripper(0);
+  st = w.state();
+  EXPECT_EQ(count(st, "grasps"), 1);
+  EXPECT_FALSE(w.set_markers_on_table(true, e));
+  EXPECT_NE(e.find("holds object 1"), std::string::npos) << e;
 }
 
 TEST(Scene, ErrorsAreDrawnFromTheSeedWithinTheirMagnitudes) {
