@@ -44,6 +44,8 @@ fuzz: deps
 
 demo: host firmware
 	@tools/demo
+	@echo
+	@tools/demo --world
 
 # The fault campaign (tools/soak/README.md): SOAK_PICKS picks under line faults, outages, vanished ports, daemon
 # kills and firmware power cycles; the summary also goes to build/soak/summary.json.

@@ -157,6 +157,7 @@ bool save_workspace(const std::string& path, const WorkspaceCalibration& c, std:
            {"homography", h},             {"image_size", {c.image_size.width, c.image_size.height}},
            {"rms_mm", c.fit.rms_mm},      {"max_loo_mm", std::isfinite(c.fit.max_loo_mm) ? json(c.fit.max_loo_mm) : json(nullptr)},
            {"points", pts}};
+  if (c.table_z_mm) doc["table_z_mm"] = *c.table_z_mm;
   return rbx1::write_file_atomic(path, doc.dump(2) + "\n", error);
 }
 
@@ -197,6 +198,11 @@ bool load_workspace(const std::string& path, WorkspaceCalibration& out, std::str
   if (!doc["rms_mm"].is_number()) return bad("\"rms_mm\" must be a number");
   c.fit.rms_mm = doc["rms_mm"].get<double>();
   c.fit.max_loo_mm = doc["max_loo_mm"].is_number() ? doc["max_loo_mm"].get<double>() : 0.0;
+  if (doc.contains("table_z_mm")) {
+    if (!doc["table_z_mm"].is_number() || !std::isfinite(doc["table_z_mm"].get<double>()))
+      return bad("\"table_z_mm\" must be a number");
+    c.table_z_mm = doc["table_z_mm"].get<double>();
+  }
   if (doc.contains("points") && doc["points"].is_array())
     for (const auto& p : doc["points"]) {
       if (!p.is_object() || !p["px"].is_array() || !p["mm"].is_array() || p["px"].size() != 2 || p["mm"].size() != 2)

@@ -36,11 +36,13 @@ bool fit_workspace(const std::vector<WorkspacePoint>& points, int min_points, Wo
 cv::Point2d apply_map(const cv::Matx33d& h, cv::Point2d px);
 
 // The file (state directory workspace.json): {"format": "rbx1-workspace", "version": 1, "model", "homography",
-// "image_size", "rms_mm", "max_loo_mm", "points": [{"id", "px", "mm", "residual_mm", "loo_mm"}]}.
+// "image_size", "rms_mm", "max_loo_mm", "points": [{"id", "px", "mm", "residual_mm", "loo_mm"}], "table_z_mm"}.
+// table_z_mm (optional): the table's height as the arm's own kinematics reaches it, the mean height of the touches.
 struct WorkspaceCalibration {
   WorkspaceFit fit;
   cv::Size image_size;
   std::vector<WorkspacePoint> points;
+  std::optional<double> table_z_mm;
 };
 bool save_workspace(const std::string& path, const WorkspaceCalibration& c, std::string& error);  // atomic
 // error "PATH: reason"; out untouched on failure.

@@ -204,18 +204,22 @@ TEST(WorkspaceFile, RoundTripAndCorruptFilesRejected) {
   std::string code, error;
   ASSERT_TRUE(fit_workspace(c.points, 4, c.fit, code, error));
   c.image_size = {800, 600};
+  c.table_z_mm = -1.25;
   std::string path = (dir / "workspace.json").string();
   ASSERT_TRUE(save_workspace(path, c, error)) << error;
   WorkspaceCalibration back;
   ASSERT_TRUE(load_workspace(path, back, error)) << error;
   EXPECT_EQ(back.image_size, cv::Size(800, 600));
+  ASSERT_TRUE(back.table_z_mm.has_value());
+  EXPECT_DOUBLE_EQ(*back.table_z_mm, -1.25);
   EXPECT_EQ(back.points.size(), 6u);
   for (int r = 0; r < 3; ++r)
     for (int k = 0; k < 3; ++k) EXPECT_DOUBLE_EQ(back.fit.h(r, k), c.fit.h(r, k));
   const char* bad[] = {"", "{", "[]", R"({"format":"x","version":1})", R"({"format":"rbx1-workspace","version":2})",
                        R"({"format":"rbx1-workspace","version":1,"homography":[[1,0],[0,1]]})",
                        R"({"format":"rbx1-workspace","version":1,"homography":[[0,0,0],[0,0,0],[0,0,0]],"image_size":[8,6],"rms_mm":0})",
-                       R"({"format":"rbx1-workspace","version":1,"homography":[[1,0,0],[0,1,0],[0,0,1]],"image_size":[0,6],"rms_mm":0})"};
+                       R"({"format":"rbx1-workspace","version":1,"homography":[[1,0,0],[0,1,0],[0,0,1]],"image_size":[0,6],"rms_mm":0})",
+                       R"({"format":"rbx1-workspace","version":1,"homography":[[1,0,0],[0,1,0],[0,0,1]],"image_size":[8,6],"rms_mm":0,"table_z_mm":"low"})"};
   for (const char* text : bad) {
     std::ofstream(dir / "bad.json") << text;
     WorkspaceCalibration keep = back;

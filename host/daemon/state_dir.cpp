@@ -99,6 +99,7 @@ bool StateDir::apply(Config& config, std::string& error) const {
     m.width = w.image_size.width;
     m.height = w.image_size.height;
     config.arm.camera.pixel_map = m;
+    if (w.table_z_mm) config.arm.heights.table_z_mm = *w.table_z_mm;
   }
   if (fs::exists(path(kBackgroundFile))) config.vision.background_path = path(kBackgroundFile);
   if (fs::exists(path(kLibraryFile))) config.vision.library_path = path(kLibraryFile);

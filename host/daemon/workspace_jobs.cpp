@@ -1,5 +1,6 @@
 // workspace_jobs.cpp - rbx1 calibrate-workspace as requests a CLI or a web page can drive: start (markers at the scan
 // pose), status, record (the tool point on marker i), fit (RMS, leave-one-out), save (atomic), cancel.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -161,7 +162,17 @@ void Machine::job_calibrate_workspace(Reply& reply, const Request& r) {
     reason = "a leave-one-out error of " + std::to_string(fit.max_loo_mm).substr(0, 5) +
              " mm is above [operator] max_loo_mm = " + std::to_string(config_.op.max_loo_mm).substr(0, 5) +
              " (re-record the marker with the largest)";
+  // The table as the arm's own kinematics reaches it: the touches' mean height (link-length errors move it by
+  // millimetres, enough for fingers planned 2 mm above the nominal table to scrape the real one).
+  double z_sum = 0, z_lo = 1e18, z_hi = -1e18;
+  for (const auto& [id, t] : s.touched) {
+    z_sum += t.z_mm;
+    z_lo = std::min(z_lo, t.z_mm);
+    z_hi = std::max(z_hi, t.z_mm);
+  }
+  const double table_z = z_sum / double(s.touched.size());
   nlohmann::json result{{"model", fit.model}, {"rms_mm", round3(fit.rms_mm)},
+                        {"table_z_mm", round3(table_z)}, {"table_z_spread_mm", round3(z_hi - z_lo)},
                         {"max_loo_mm", std::isfinite(fit.max_loo_mm) ? nlohmann::json(round3(fit.max_loo_mm)) : nlohmann::json(nullptr)},
                         {"markers", per}, {"predicted", predicted}, {"accepted", reason.empty()},
                         {"bounds", {{"max_rms_mm", config_.op.max_rms_mm}, {"max_loo_mm", config_.op.max_loo_mm}}}};
@@ -175,7 +186,7 @@ void Machine::job_calibrate_workspace(Reply& reply, const Request& r) {
     reply.error("fit_rejected", reason + "; nothing saved, the old calibration stays");
     return;
   }
-  calib::WorkspaceCalibration w{fit, s.image_size, points};
+  calib::WorkspaceCalibration w{fit, s.image_size, points, table_z};
   if (!state_->ensure(error) || !calib::save_workspace(state_->path(kWorkspaceFile), w, error)) {
     reply.error("state_failed", error);
     return;
@@ -186,9 +197,10 @@ void Machine::job_calibrate_workspace(Reply& reply, const Request& r) {
   m.width = s.image_size.width;
   m.height = s.image_size.height;
   config_.arm.camera.pixel_map = m;
+  config_.arm.heights.table_z_mm = table_z;
   workspace_.reset();
-  spdlog::info("workspace calibration saved: {} over {} markers, RMS {:.3f} mm, worst leave-one-out {:.3f} mm",
-               fit.model, points.size(), fit.rms_mm, fit.max_loo_mm);
+  spdlog::info("workspace calibration saved: {} over {} markers, RMS {:.3f} mm, worst leave-one-out {:.3f} mm, table "
+               "at z {:.2f} mm", fit.model, points.size(), fit.rms_mm, fit.max_loo_mm, table_z);
   result["saved"] = state_->path(kWorkspaceFile);
   result["in_force"] = "workspace";
   reply.result(result);

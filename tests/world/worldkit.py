@@ -171,12 +171,11 @@ class Cell:
             return r["tool"]["z_mm"]
 
         t = tool()
-        believed_z = None
         if t[2] < 30.0:
-            believed_z = jog([0.0, 0.0, 30.0 - t[2]])
+            jog([0.0, 0.0, 30.0 - t[2]])
             jogs += 1
         t = tool()
-        believed_z = jog([x - t[0], y - t[1], 0.0])
+        believed_z = jog([x - t[0], y - t[1], 30.0 - t[2]])
         jogs += 1
         for _ in range(6):
             t = tool()
