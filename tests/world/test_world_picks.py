@@ -47,7 +47,7 @@ def test_picks_land_in_place_under_full_errors_after_the_workspace_calibration(t
     print(f"\nworld {seed}: mount {[round(v, 2) for v in e['mount_xyz_mm']]} mm "
           f"{[round(v, 2) for v in e['mount_rpy_deg']]} deg, links {[round(v, 2) for v in e['links_mm']]} mm; "
           f"calibration over markers {fit['seen']} ({fit['jogs']} jogs): RMS {fit['rms_mm']} mm, worst "
-          f"leave-one-out {fit['max_loo_mm']} mm")
+          f"leave-one-out {fit['max_loo_mm']} mm, table at z {fit['table_z_mm']} mm (spread {fit['table_z_spread_mm']} mm)")
     assert max(abs(v) for v in e["mount_rpy_deg"]) > 1.0, e  # the errors are really there
     assert fit["seen"] == [0, 1, 2, 3, 4, 5] and fit["accepted"] and fit["saved"], fit
     assert fit["rms_mm"] < 0.5 and fit["max_loo_mm"] < 1.0, fit
@@ -61,8 +61,11 @@ def test_picks_land_in_place_under_full_errors_after_the_workspace_calibration(t
         print(f"  {r['label']} -> {r['place']}: grasp offset {grasp['offset_mm']} mm, yaw error "
               f"{grasp['yaw_error_deg']} deg, placement error {placement['error_mm']} mm")
         assert grasp["offset_mm"] < 2.0 and grasp["yaw_error_deg"] < 5.0, grasp
+        # The table measured by the touches: the fingertips stop above the real table, not in it.
+        assert 0.5 < grasp["tool_mm"][2] < 4.0, grasp
         assert placement["place"] == r["place"] and placement["error_mm"] < 3.0, placement
     assert worldkit.placed_correctly(state, records) == len(records) == 4
+    # Nothing hit during the calibration's touches either (the events include them).
     assert state["counts"]["collisions"] == 0 and state["counts"]["closed_empty"] == 0, state["counts"]
 
 
