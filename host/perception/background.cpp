@@ -29,18 +29,20 @@ void robust_stats(const cv::Mat& g, const cv::Mat& bg, int step, double& median,
     median = 0, sigma = 1;
     return;
   }
-  auto quantile = [&](const std::array<int, 512>& h, int total) {
+  // The index of the median count of a histogram.
+  auto median_index = [&](const std::array<int, 512>& h, int total) {
     int acc = 0;
     for (int i = 0; i < 512; ++i) {
       acc += h[size_t(i)];
-      if (2 * acc >= total) return i - 256;
+      if (2 * acc >= total) return i;
     }
     return 0;
   };
-  int med = quantile(hist, n);
+  const int med = median_index(hist, n) - 256;
+  // Absolute deviations from the median: 0..510 (a difference of -255 from a median of +255).
   std::array<int, 512> dev{};
-  for (int i = 0; i < 512; ++i) dev[size_t(std::abs(i - 256 - med) + 256)] += hist[size_t(i)];
-  int mad = quantile(dev, n);
+  for (int i = 0; i < 512; ++i) dev[size_t(std::abs(i - 256 - med))] += hist[size_t(i)];
+  const int mad = median_index(dev, n);
   median = med;
   sigma = std::max(1.0, 1.4826 * mad);
 }
