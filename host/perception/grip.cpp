@@ -38,6 +38,30 @@ bool finger_blocked(cv::Point2d q, cv::Point2d out, int own, const cv::Mat& labe
   return false;
 }
 
+// Where real fingers come down on each line: outside the object's outermost contour points within their
+// width (|across| <= half), not at the line's own crossings, which would put a finger on the object's other
+// parts (a star's neighbouring points, an L's other arm). And the planner centres the gripper on the
+// centroid, so both fingers open to the farther of the two: the faces are at -H and +H. The contour is
+// dense (sub-pixel edge points ~1 px apart), so its points stand for the region.
+void widen_to_fingers(const Geometry& g, int lines, double half, const std::vector<char>& valid,
+                      std::vector<double>& lo, std::vector<double>& hi) {
+  const size_t n = g.contour.size();
+  std::vector<double> x(n), y(n);
+  for (size_t i = 0; i < n; ++i) x[i] = g.contour[i].x - g.centroid.x, y[i] = g.contour[i].y - g.centroid.y;
+  for (int k = 0; k < lines; ++k) {
+    if (!valid[size_t(k)]) continue;
+    const double phi = k * M_PI / lines, c = std::cos(phi), s = std::sin(phi);
+    double a = lo[size_t(k)], b = hi[size_t(k)];
+    for (size_t i = 0; i < n; ++i) {
+      if (std::abs(c * y[i] - s * x[i]) > half) continue;
+      const double t = c * x[i] + s * y[i];
+      a = std::min(a, t), b = std::max(b, t);
+    }
+    const double h = std::max(b, -a);
+    lo[size_t(k)] = -h, hi[size_t(k)] = h;
+  }
+}
+
 Grip make_grip(const Geometry& g, double phi, double tmin, double tmax) {
   Grip gr;
   cv::Point2d u(std::cos(phi), std::sin(phi));
@@ -133,8 +157,12 @@ Grip choose_grip(const Geometry& g, const RayHits& hits, int own_label, const cv
     double tmin = 0, tmax = 0;
     if (!line_from_rays(hits, k, lines, tmin, tmax)) continue;
     lo[size_t(k)] = tmin, hi[size_t(k)] = tmax, valid[size_t(k)] = 1;
+  }
+  if (opt.finger_width_px > 0 && opt.finger_depth_px > 0) widen_to_fingers(g, lines, opt.finger_width_px / 2, valid, lo, hi);
+  for (int k = 0; k < lines; ++k) {
+    if (!valid[size_t(k)]) continue;
     phi.push_back(k * step);
-    d.push_back(tmax - tmin);
+    d.push_back(hi[size_t(k)] - lo[size_t(k)]);
   }
   Grip none;
   none.feasible = false, none.reason = GripReason::NoContact;

@@ -1,5 +1,5 @@
 // grip.hpp - picking points (paper step V): D(theta) = r(theta) + r(theta + pi), minimum, with real contacts
-// (outermost contour crossings of the closing line) and finger clearance from neighbouring objects.
+// (outermost contour crossings of the closing line), fingers off the object's own outline and clear of neighbours.
 #pragma once
 #include <vector>
 
@@ -29,7 +29,9 @@ RayHits cast_rays(const Geometry& g, int lines);
 bool chord_at(const Geometry& g, double phi, double& tmin, double& tmax);
 
 // The paper's D(theta) on the sampled lines (phi in [0, pi)) and the chosen grip. A line is a grip only when
-// the contour crosses it on both sides of the centroid (real contacts, opening > 0); the narrowest such line
+// the contour crosses it on both sides of the centroid (real contacts, opening > 0). With a finger size the
+// opening is that of fingers centred on the centroid whose faces clear the object's outermost points within
+// their width (p1/p2 are the faces, symmetric about the centroid). The narrowest such line
 // within [min_opening_px, max_opening_px] whose fingers are clear wins. Otherwise the grip is infeasible with
 // its reason: no_contact (no line with contacts on both sides), too_narrow / too_wide (none in range),
 // finger_collision (none clear). labels/obstacle (from isolation) locate neighbours; own_label is this object's.

@@ -60,6 +60,18 @@ double to_boundary(const Poly& poly, cv::Point2d p) {
   return best;
 }
 
+// Does a finger (fw across the closing line, fd outward from contact q, beyond an edge band of `band` px: a
+// blurred sharp tip comes out up to ~1.5 px short) cover any point of the polygon?
+bool finger_on(const Poly& poly, cv::Point2d q, cv::Point2d out, double fw, double fd, double band) {
+  std::vector<cv::Point2f> pf;
+  for (auto v : poly) pf.emplace_back(float(v.x), float(v.y));
+  cv::Point2d n(-out.y, out.x);
+  for (double a = band; a <= fd; a += 0.5)
+    for (double b = -fw / 2; b <= fw / 2; b += 0.5)
+      if (cv::pointPolygonTest(pf, cv::Point2f(q + a * out + b * n), false) >= 0) return true;
+  return false;
+}
+
 TEST(Grip, RectangleIsGrippedAcrossItsWidth) {
   Poly r = rectangle({300, 240}, 160, 50, 25);
   Detection d = run({r});
@@ -125,8 +137,66 @@ TEST(Grip, FingerDoesNotLandOnANeighbour) {
   EXPECT_NEAR(std::abs(g0.angle_deg), 90, 2);  // across the bar, straight onto the block
   EXPECT_TRUE(g1.clear);
   EXPECT_GT(std::abs(fold_axis_deg(g1.angle_deg - g0.angle_deg)), 20);  // a different, clear direction
-  // The chosen contacts are clear of the block by the finger's half width.
-  for (cv::Point2d p : {g1.p1, g1.p2}) EXPECT_LT(to_boundary(bar, p), 1.0);
+  // The fingers come down off the bar too (they close on its outermost points within their width).
+  cv::Point2d u = (g1.p2 - g1.p1) / cv::norm(g1.p2 - g1.p1);
+  EXPECT_FALSE(finger_on(bar, g1.p1, -u, 14, 14, 0.75));
+  EXPECT_FALSE(finger_on(bar, g1.p2, u, 14, 14, 0.75));
+  for (cv::Point2d p : {g1.p1, g1.p2}) EXPECT_LT(to_boundary(bar, p), 7.0);
+}
+
+// Extent along u (through c) of the polygon's part within |across| <= half of that line: where fingers of
+// that width stop when they close along it (the polygon's edges sampled every 0.05 px).
+void band_extent(const Poly& poly, cv::Point2d c, cv::Point2d u, double half, double& lo, double& hi) {
+  cv::Point2d n(-u.y, u.x);
+  lo = 1e300, hi = -1e300;
+  for (size_t i = 0; i < poly.size(); ++i) {
+    cv::Point2d a = poly[i], d = poly[(i + 1) % poly.size()] - a;
+    int steps = std::max(1, int(cv::norm(d) / 0.05));
+    for (int s = 0; s <= steps; ++s) {
+      cv::Point2d p = a + d * (double(s) / steps) - c;
+      if (std::abs(p.dot(n)) > half) continue;
+      lo = std::min(lo, p.dot(u)), hi = std::max(hi, p.dot(u));
+    }
+  }
+}
+
+TEST(Grip, FingersStayOffTheObjectsOwnOutline) {
+  // The narrowest chord through the centroid of a star (tip to notch) and of an L (across one arm, beside the
+  // other) puts a finger of real width on the object itself: the star's neighbouring points, the L's other arm.
+  // The fingers must come down outside the object, around the centroid where the planner centres them.
+  const double fw = 30, fd = 12;
+  std::vector<Poly> shapes = {star({170, 200}, 80, 40, 5, 12), l_shape({460, 240}, 120, 40, 30)};
+  Detection d = run(shapes, fw, fd);
+  ASSERT_EQ(d.objects.size(), 2u);
+  for (const Poly& p : shapes) {
+    cv::Point2d c = poly_centroid(p);
+    const DetectedObject* o = nullptr;
+    for (const auto& x : d.objects)
+      if (cv::norm(x.geometry.centroid - c) < 2) o = &x;
+    ASSERT_TRUE(o);
+    const Grip& g = o->grip;
+    EXPECT_TRUE(g.feasible);
+    cv::Point2d u = (g.p2 - g.p1) / cv::norm(g.p2 - g.p1);
+    EXPECT_FALSE(finger_on(p, g.p1, -u, fw, fd, 1.5));
+    EXPECT_FALSE(finger_on(p, g.p2, u, fw, fd, 1.5));
+    // The gripper is centred on the centroid (the planner puts it there): both fingers open to the object's
+    // farther extent within their width along the closing line, so the finger on the far side clears it too.
+    double lo, hi;
+    band_extent(p, o->geometry.centroid, u, fw / 2, lo, hi);
+    EXPECT_NEAR(g.opening_px, 2 * std::max(hi, -lo), 1.5);
+    EXPECT_LT(cv::norm((g.p1 + g.p2) / 2 - o->geometry.centroid), 1e-6);
+  }
+  // The chord-only grip (no finger size) of the same shapes does put a finger on them: the checks above can fail.
+  Detection naive = run(shapes);
+  for (const auto& o : naive.objects) {
+    const Grip& g = o.grip;
+    cv::Point2d u = (g.p2 - g.p1) / cv::norm(g.p2 - g.p1);
+    double lo, hi;
+    const Poly& p = cv::norm(o.geometry.centroid - poly_centroid(shapes[0])) < 2 ? shapes[0] : shapes[1];
+    band_extent(p, o.geometry.centroid, u, fw / 2, lo, hi);
+    EXPECT_GT(hi - lo, g.opening_px + 5) << "the naive grip of object " << o.index << " already leaves room";
+    EXPECT_TRUE(finger_on(p, g.p1, -u, fw, fd, 1.5) || finger_on(p, g.p2, u, fw, fd, 1.5));
+  }
 }
 
 TEST(Grip, NoClearGripIsInfeasible) {
