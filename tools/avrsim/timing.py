@@ -157,12 +157,13 @@ def analyse(path, phases=(), step_vector=STEP_VECTOR):
 
 
 class Board:
-    """rbx1-avrsim --fast --trace on the real ELF, a Link to its pty and its control FIFO."""
+    """rbx1-avrsim --trace on the real ELF (--fast unless fast=False), a Link to its pty and its control FIFO."""
 
-    def __init__(self, trace_path, workdir):
+    def __init__(self, trace_path, workdir, fast=True):
         self.fifo = os.path.join(workdir, "control.fifo")
         self.json = os.path.join(workdir, "avrsim.json")
-        self.proc = subprocess.Popen([AVRSIM, "--elf", ELF, "--fast", "--trace", trace_path, "--json", self.json,
+        self.proc = subprocess.Popen([AVRSIM, "--elf", ELF] + (["--fast"] if fast else []) +
+                                     ["--trace", trace_path, "--json", self.json,
                                       "--control", self.fifo, "--max-seconds", "300"], stdout=subprocess.PIPE, text=True)
         self.link = Link(self.proc.stdout.readline().strip(), timeout=0.5, retries=10)
         self.link.hello()

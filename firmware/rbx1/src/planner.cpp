@@ -1,10 +1,13 @@
-// planner.cpp - coordinated move planning: dominant-joint trapezoid scaled so every joint stays in its limits.
+// planner.cpp - coordinated move planning: dominant-joint trapezoid scaled so every joint stays in its limits, and
+// the look-ahead that joins consecutive moves (junction limits, backward and forward passes).
 #include "planner.h"
 
 #include <math.h>
 #include <string.h>
 
 #include "config.h"
+#include "hal.h"
+#include "queue.h"
 #include "rbx1_proto.h"
 #include "settings.h"
 
@@ -49,7 +52,49 @@ static float shape(float fn, uint32_t n, float vc, float a, float *v0_out, uint3
   return profile_s(fn, (float)ramp_steps, v0, vc, a);
 }
 
-uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6], uint16_t duration_ms) {
+static uint32_t sq4_of(float v) {
+  float f = 4.0f * v * v + 0.5f;
+  return f > 4.0e9f ? 4000000000UL : (uint32_t)f;
+}
+
+static uint32_t add_sat(uint32_t a, uint32_t b) { return a + b < a ? 0xFFFFFFFFUL : a + b; }
+
+// The junction rule (firmware/README.md, Look-ahead): at a junction the dominant rate v is continuous, so joint i
+// changes its velocity by v * d_i, d_i = |u_i - w_i| (u, w: its steps per dominant step in the two moves, signed).
+// Each joint may change by at most its start rate sqrt(ACCEL_i / 2), the jump it already makes when it starts from
+// rest, and by no more than ACCEL_i allows over the shorter move's time n/v (junctions every few steps, as on a
+// curve, then average out within ACCEL): v d_i <= sqrt(ACCEL_i / 2) and v^2 d_i <= ACCEL_i * min(n, n').
+// The junction speed is the largest v within those and both moves' nominal speeds. The moves join when that is at
+// least both stop rates and each move can ramp between its stop rate and it.
+static void junction(plan_block *b, const plan_block *p, float vc) {
+  b->joins = 0;
+  b->max_entry_sq4 = b->stop_sq4;
+  if (!p || p->kind != BLOCK_MOVE || p->n == 0 || b->n == 0 || (p->joins & PLAN_NEVER_JOINS)) return;
+  float vj = (float)p->vc / (float)PLAN_V_ONE;
+  if (vc < vj) vj = vc;
+  const float pn = (float)p->n, bn = (float)b->n;
+  for (uint8_t i = 0; i < RBX1_JOINTS; i++) {
+    uint8_t bit = (uint8_t)(1u << i);
+    float u = (float)p->steps[i] / pn, w = (float)b->steps[i] / bn;
+    if (!(p->dir_positive & bit)) u = -u;
+    if (!(b->dir_positive & bit)) w = -w;
+    float d = fabsf(u - w);
+    if (d * vj > 0.0f) {
+      float acc = (float)SETTING(i, RBX1_KEY_ACCEL);
+      float jump = sqrtf(acc * 0.5f), curve = sqrtf(acc * (pn < bn ? pn : bn) / d);
+      if (jump < d * vj) vj = jump / d;
+      if (curve < vj) vj = curve;
+    }
+  }
+  uint32_t sq = sq4_of(vj);
+  uint32_t floor = p->stop_sq4 > b->stop_sq4 ? p->stop_sq4 : b->stop_sq4;
+  if (sq < floor || add_sat(b->stop_sq4, b->span_sq4) < floor || add_sat(p->stop_sq4, p->span_sq4) < floor) return;
+  b->joins = PLAN_JOINS;
+  b->max_entry_sq4 = sq;
+}
+
+uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6], uint16_t duration_ms,
+                  const plan_block *prev) {
   memset(b, 0, sizeof(*b));
   b->kind = BLOCK_MOVE;
   b->duration_ms = duration_ms;
@@ -64,7 +109,7 @@ uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6]
   }
   b->n = n;
   b->planned_ms = duration_ms;
-  if (n == 0) return RBX1_OK;  // nothing to step: the entry is a dwell of duration_ms
+  if (n == 0) return RBX1_OK;  // nothing to step: the entry is a dwell of duration_ms (and a stop)
 
   // Dominant-joint limits: joint i moves steps[i]/n as fast as the dominant one, so its own limits scale up.
   float fn = (float)n, vmax = 1e30f, amax = 1e30f;
@@ -78,9 +123,18 @@ uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6]
   // Fastest profile: cruise at vmax, or a triangle peaking where ramp-up and ramp-down meet (v^2/a = n).
   float vc = sqrtf(amax * fn);
   if (vmax < vc) vc = vmax;
-  // Slower when duration_ms asks: solve n/v + v/a = T for the cruise velocity. The stepper's overheads
-  // (profile_s) make the motion a little longer than that, so aim earlier by them: it ends by duration_ms.
-  float T = (float)duration_ms * 0.001f, vfast = vc;
+  // Joined to its neighbours the move cruises at most at n / duration_ms: never shorter than duration_ms.
+  // The cruise interval is a whole number of step-timer ticks, rounded up, so the stepper's truncated intervals
+  // never run it faster.
+  float T = (float)duration_ms * 0.001f, vjoin = vmax;
+  if (T > 0 && fn / T < vjoin) vjoin = (float)STEP_TIMER_HZ / ceilf((float)STEP_TIMER_HZ * T / fn);
+  // Joined, the move lasts at least two profile ticks: the tick that sees it start prepares the next one in time.
+  const float tick_cap = fn * (float)PROFILE_TICK_HZ * 0.5f;
+  if (tick_cap < vjoin) vjoin = tick_cap;
+  // Alone, from rest to rest: slower when duration_ms asks, solving n/v + v/a = T for the cruise velocity. The
+  // stepper's overheads (profile_s) make the motion a little longer than that, so aim earlier by them: it ends by
+  // duration_ms.
+  float vfast = vc;
   uint8_t stretched = 0;
   if (T > 0 && fn / vc + vc / amax < T) {
     float v = stretch_v(fn, amax, T);
@@ -102,15 +156,26 @@ uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6]
     float tb = shape(fn, n, v, amax, &v0b, &rb);
     vc = v, v0 = v0b, ramp_steps = rb, t = tb;
   }
-  b->ramp_steps = ramp_steps;
-  b->v0sq4 = (uint32_t)(4.0f * v0 * v0 + 0.5f);  // <= 4 vc^2 <= 1.6e9: fits
-  b->a8 = (uint32_t)(8.0f * amax + 0.5f);        // 8 a s < 4 (vc^2 - v0^2) + 8 a on the ramps: fits
+  uint8_t never_joins = vjoin < v0;  // too short to run on at even its stop rate
+  if (vjoin < v0) vjoin = v0;
+  b->a8 = (uint32_t)(8.0f * amax + 0.5f);  // 8 a s < 4 (vc^2 - v0^2) + 8 a on the ramps: fits
   b->v0 = to_fixed(v0);
-  b->vc = to_fixed(vc);
+  b->vc = to_fixed(vjoin);
+  b->vc_rest = to_fixed(vc);
+  b->stop_sq4 = sq4_of(v0);
+  b->vc_sq4 = sq4_of(vjoin);
+  float span = 8.0f * amax * fn;
+  b->span_sq4 = span > 4.0e9f ? 0xFFFFFFFFUL : (uint32_t)span;
   float dv = amax * (float)PLAN_V_ONE / (float)PROFILE_TICK_HZ;
   b->dv = dv < 1.0f ? 1 : (dv > 4.0e9f ? 4000000000UL : (uint32_t)dv);
   float t_ms = t * 1000.0f;
   if (t_ms > (float)duration_ms) b->planned_ms = t_ms > 65535.0f ? 65535 : (uint16_t)(t_ms + 0.999f);
+  b->entry_sq4 = b->exit_sq4 = b->stop_sq4;
+  b->decel_steps = b->vc_sq4 > b->stop_sq4 ? (b->vc_sq4 - b->stop_sq4) / b->a8 + 1 : 0;
+  if (never_joins)
+    b->joins = PLAN_NEVER_JOINS;
+  else
+    junction(b, prev, vjoin);
   return RBX1_OK;
 }
 
@@ -120,4 +185,43 @@ void plan_gripper(plan_block *b, uint16_t pulse_us, uint16_t dwell_ms) {
   b->pulse_us = pulse_us;
   b->duration_ms = dwell_ms;
   b->planned_ms = dwell_ms;
+}
+
+// The exit and its ramp, as the stepper reads them (interrupts off for the 8 bytes; the division outside).
+static void set_exit(plan_block *b, uint32_t exit_sq4) {
+  if (b->kind != BLOCK_MOVE || b->n == 0 || b->exit_sq4 == exit_sq4) return;
+  uint32_t steps = b->vc_sq4 > exit_sq4 ? (b->vc_sq4 - exit_sq4) / b->a8 + 1 : 0;
+  hal_irq_state s = hal_irq_save();
+  b->exit_sq4 = exit_sq4;
+  b->decel_steps = steps;
+  hal_irq_restore(s);
+}
+
+void planner_recalculate(void) {
+  plan_block *q[QUEUE_SIZE];
+  uint32_t exit[QUEUE_SIZE];
+  uint8_t c = queue_blocks(q);  // oldest first; a pop meanwhile leaves the popped block's data in place
+  if (c < 2) return;
+  // Backward: the last entry ends at its stop rate; each earlier one exits as fast as the next can enter (within
+  // its junction limit and what it can slow down from over its own steps).
+  exit[c - 1] = q[c - 1]->stop_sq4;
+  for (uint8_t k = (uint8_t)(c - 1); k >= 1; k--) {
+    plan_block *b = q[k];
+    uint32_t entry = b->stop_sq4;
+    if (b->joins & PLAN_JOINS) {
+      entry = add_sat(exit[k], b->span_sq4);
+      if (entry > b->max_entry_sq4) entry = b->max_entry_sq4;
+    }
+    exit[k - 1] = (b->joins & PLAN_JOINS) ? entry : q[k - 1]->stop_sq4;
+  }
+  // Forward: no exit faster than the move can reach from its own entry. Computed before anything is written, so
+  // the stepper never sees a running move's exit raised and lowered again: exits only rise as moves arrive.
+  uint32_t entry = q[0]->entry_sq4;
+  for (uint8_t k = 0; k < c; k++) {
+    uint32_t reach = add_sat(entry, q[k]->span_sq4);
+    if (exit[k] > reach) exit[k] = reach;
+    entry = (k + 1 < c && (q[k + 1]->joins & PLAN_JOINS)) ? exit[k] : (k + 1 < c ? q[k + 1]->stop_sq4 : 0);
+    if (k + 1 < c) q[k + 1]->entry_sq4 = entry;
+  }
+  for (uint8_t k = 0; k < c; k++) set_exit(q[k], exit[k]);
 }

@@ -1,5 +1,6 @@
-// planner.h - turns a MOVE into a coordinated block: per-joint step counts for the Bresenham/DDA and a
-// trapezoidal velocity profile of the dominant joint within every joint's MAX_SPEED and ACCEL.
+// planner.h - turns a MOVE into a coordinated block (per-joint step counts for the Bresenham/DDA, the dominant
+// joint's speed and acceleration limits within every joint's MAX_SPEED and ACCEL), and the look-ahead over the
+// queue: junction speeds between consecutive moves and entry/exit speeds recomputed as moves arrive (GRBL-style).
 #ifndef RBX1_PLANNER_H
 #define RBX1_PLANNER_H
 
@@ -8,29 +9,50 @@
 #define BLOCK_MOVE 0
 #define BLOCK_GRIPPER 1
 
-// Velocities are 16.16 fixed point steps/s: 1 step/s = 65536 (enough for 20000 steps/s in 32 bits).
+// Velocities are 16.16 fixed point steps/s: 1 step/s = 65536 (enough for 20000 steps/s in 32 bits). A velocity is
+// always the rate of the block's dominant joint (the largest joint rate), which is continuous across junctions.
+// Squared speeds are kept as 4 v^2 [(steps/s)^2] (the stepper's integer square root gives 2v).
 #define PLAN_V_ONE 65536UL
+
+// plan_block.joins
+#define PLAN_JOINS 1        // runs on from the previous queue entry without stopping (the junction rule allows it)
+#define PLAN_NEVER_JOINS 2  // too short to run on (under two profile ticks at its stop rate): stops at both ends
 
 struct plan_block {
   uint8_t kind;           // BLOCK_MOVE or BLOCK_GRIPPER
   uint8_t dir_positive;   // bit per joint: moving towards larger step counts
+  uint8_t joins;          // PLAN_JOINS, PLAN_NEVER_JOINS or 0
+  uint8_t seq;            // low byte of the queue's accepted counter at commit (the stepper's segments name it)
   uint16_t duration_ms;   // minimum time of the entry: the MOVE's duration_ms or the gripper's dwell
-  uint16_t planned_ms;    // the profile's own time (for the move log)
+  uint16_t planned_ms;    // the profile's own time from rest to rest (for the move log)
   uint16_t pulse_us;      // gripper pulse
   uint32_t steps[6];      // |target - start| per joint
   uint32_t n;             // dominant joint's steps (the DDA's tick count)
-  uint32_t ramp_steps;    // dominant steps of the ramp-up (and of the ramp-down)
-  uint32_t v0;            // start/end velocity (the first step's rate)
-  uint32_t vc;            // cruise velocity
+  uint32_t v0;            // start/stop rate (the first step's rate from rest)
+  uint32_t vc;            // nominal velocity when joined: the fastest the limits allow, at most n / duration_ms
+  uint32_t vc_rest;       // cruise of the block run alone from rest to rest, stretched to end by duration_ms
   uint32_t dv;            // velocity change per profile tick (ACCEL / 1000), for controlled stops
-  uint32_t v0sq4;         // 4 v0^2 and 8 a [steps/s, steps/s^2]: the ramps as (2v)^2 = 4 v0^2 + 8 a s,
-  uint32_t a8;            // s = steps from the nearer end of the move
+  uint32_t a8;            // 8 a [steps/s^2]: along a ramp 4 v^2 changes by a8 per step
+  uint32_t stop_sq4;      // 4 v0^2
+  uint32_t vc_sq4;        // 4 vc^2
+  uint32_t span_sq4;      // a8 * n (saturated): how much 4 v^2 can change over the whole block
+  uint32_t max_entry_sq4; // junction limit with the previous entry (stop_sq4 when it does not join)
+  // Look-ahead results, changed by planner_recalculate() while the entry waits or runs (interrupts off around
+  // each pair): 4 v^2 at entry and exit, and the steps of the ramp from vc down to the exit.
+  uint32_t entry_sq4;
+  uint32_t exit_sq4;
+  uint32_t decel_steps;
   int32_t target[6];
 };
 
-// Plans start -> target. Returns RBX1_OK, or RBX1_BAD_ARG if a joint would move 2^31 steps or more.
-uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6], uint16_t duration_ms);
+// Plans start -> target. prev: the queue's last entry (0 when the queue is empty), for the junction limit.
+// Returns RBX1_OK, or RBX1_BAD_ARG if a joint would move 2^31 steps or more.
+uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6], uint16_t duration_ms,
+                  const plan_block *prev);
 // A gripper entry: servo pulse then a dwell.
 void plan_gripper(plan_block *b, uint16_t pulse_us, uint16_t dwell_ms);
+// The look-ahead passes over the queue after a commit: backward from the last entry (which ends at its stop rate)
+// and forward from the oldest (which may be running: its exit is only ever raised, see stepper.cpp).
+void planner_recalculate(void);
 
 #endif

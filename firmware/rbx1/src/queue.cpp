@@ -43,6 +43,7 @@ uint8_t queue_commit(void) {
   uint8_t ok = reserved_epoch == epoch && count < QUEUE_SIZE;
   plan_block *b = &blocks[head];
   if (ok) {
+    b->seq = (uint8_t)accepted;
     head = (uint8_t)((head + 1) % QUEUE_SIZE);
     count++;
     accepted++;
@@ -62,12 +63,31 @@ uint8_t queue_commit(void) {
 void queue_plan_start(int32_t out[6], const int32_t current[6]) {
   hal_irq_state s = hal_irq_save();
   const int32_t *from = count > 0 && last_target_valid ? last_target : current;
-  if (count > 0 && last_target_valid == KEPT) from = blocks[tail].target;
+  if (count > 0 && last_target_valid == KEPT) from = blocks[(head + QUEUE_SIZE - 1) % QUEUE_SIZE].target;
   hal_irq_restore(s);
   memcpy(out, from, sizeof(last_target));
 }
 
 plan_block *queue_first(void) { return count ? &blocks[tail] : 0; }
+
+plan_block *queue_second(void) { return count > 1 ? &blocks[(tail + 1) % QUEUE_SIZE] : 0; }
+
+uint8_t queue_first_seq(void) { return blocks[tail].seq; }
+
+const plan_block *queue_last(void) {
+  hal_irq_state s = hal_irq_save();
+  const plan_block *b = count ? &blocks[(head + QUEUE_SIZE - 1) % QUEUE_SIZE] : 0;
+  hal_irq_restore(s);
+  return b;
+}
+
+uint8_t queue_blocks(plan_block *out[QUEUE_SIZE]) {
+  hal_irq_state s = hal_irq_save();
+  uint8_t t = tail, c = count;
+  hal_irq_restore(s);
+  for (uint8_t k = 0; k < c; k++) out[k] = &blocks[(t + k) % QUEUE_SIZE];
+  return c;
+}
 
 void queue_pop(void) {
   hal_irq_state s = hal_irq_save();
@@ -78,15 +98,16 @@ void queue_pop(void) {
   hal_irq_restore(s);
 }
 
-void queue_flush(uint8_t keep_first) {
+void queue_flush(uint8_t keep) {
   hal_irq_state s = hal_irq_save();
-  uint8_t keep = (keep_first && count) ? 1 : 0;
+  if (keep > count) keep = count;
   flushed = (uint16_t)(flushed + (count - keep));
   count = keep;
   head = (uint8_t)((tail + keep) % QUEUE_SIZE);
   epoch++;
-  // A kept entry may be a move: later moves plan from its target (read from the entry, no copy in this window).
-  last_target_valid = (keep && blocks[tail].kind == BLOCK_MOVE) ? KEPT : 0;
+  // Kept entries are moves (or the one executing entry): later moves plan from the newest one's target (read from
+  // the entry, no copy in this window).
+  last_target_valid = (keep && blocks[(head + QUEUE_SIZE - 1) % QUEUE_SIZE].kind == BLOCK_MOVE) ? KEPT : 0;
   hal_irq_restore(s);
 }
 

@@ -5,6 +5,7 @@
 
 #include <stdint.h>
 
+#include "config.h"
 #include "planner.h"
 
 void queue_init(void);
@@ -20,10 +21,19 @@ uint8_t queue_commit(void);
 void queue_plan_start(int32_t out[6], const int32_t current[6]);
 // Oldest entry, or 0 (stepper side).
 plan_block *queue_first(void);
+// The entry after the oldest, or 0 (stepper side: the move it may run on into).
+plan_block *queue_second(void);
+// The newest entry, or 0 (main loop, between queue_reserve() and queue_commit(): the junction's previous move).
+const plan_block *queue_last(void);
+// Pointers to the entries, oldest first (main loop: the look-ahead). Returns their number.
+uint8_t queue_blocks(plan_block *out[QUEUE_SIZE]);
+// Seq (plan_block.seq) of the oldest entry (stepper side).
+uint8_t queue_first_seq(void);
 // Removes the oldest entry (stepper side, when it completes).
 void queue_pop(void);
-// Drops entries; keep_first keeps the executing one. Interrupt-safe.
-void queue_flush(uint8_t keep_first);
+// Drops entries but the oldest `keep` (the executing one, and those a controlled stop runs through).
+// Interrupt-safe.
+void queue_flush(uint8_t keep);
 // Entries committed and entries dropped without completing, since power-up (STATUS.moves_accepted and
 // moves_flushed; both wrap at 65536). accepted = moves_done + flushed + queue_count() whenever interrupts are off.
 uint16_t queue_accepted(void);

@@ -1,6 +1,6 @@
 // stepper.cpp - stepper driver: step pulses from the Timer1 compare interrupt (16-bit Bresenham/DDA over segments
-// of a planned block) and the 1 kHz profile tick that ramps the velocity, prepares segments and sequences the
-// queue. Never driven by loop().
+// of planned blocks) and the 1 kHz profile tick that ramps the velocity, prepares segments, runs on from one move
+// into the next (look-ahead) and sequences the queue. Never driven by loop().
 #include "stepper.h"
 
 #include <string.h>
@@ -23,7 +23,8 @@
 
 // A segment: at most 32767 dominant steps of one block, run by the step ISR's 16-bit Bresenham. A block of more
 // dominant steps runs as several segments, each with the exact integer share of every joint's steps; the profile
-// tick prepares the next one while the current one runs, and the ISR switches without a gap.
+// tick prepares the next one while the current one runs (the next block's first when the two join), and the ISR
+// switches without a gap.
 #define SEG_MAX 0x7FFFUL
 struct seg_t {
   const plan_block *blk;  // the block it belongs to (0: at rest, base holds the positions)
@@ -34,6 +35,8 @@ struct seg_t {
   int16_t inc[6];         // steps per joint in this segment
   int32_t base[6];        // positions at the segment's start
   uint8_t dir;            // bit per joint: positive
+  uint8_t dirbits;        // DIR outputs (dir with INVERT_DIR applied)
+  uint8_t seq;            // the block's queue seq (plan_block.seq)
 };
 static seg_t segs[2];
 
@@ -51,6 +54,7 @@ static struct {
   uint8_t jog_hit;
   uint8_t estop_seen;    // the step ISR saw the e-stop input (the profile tick latches it, even if brief)
   uint8_t gen;           // changes whenever the current segment changes (position readers retry on a change)
+  uint8_t dirbits;       // DIR outputs now
   int16_t n16;           // dominant steps of the current segment
   uint16_t left;         // of them not yet output
   uint16_t iv16;         // step interval in timer ticks; 0: longer than 16 bits, then it is
@@ -70,7 +74,9 @@ static struct {
   plan_block *block;     // executing queue entry
   uint32_t v;            // 16.16 steps/s
   uint32_t v0, vc, dv;   // start/stop and cruise velocity, per-tick change of a controlled stop
-  uint32_t ramp_steps, v0sq4, a8;  // the ramps by position (planner.h)
+  uint32_t entry_sq4, a8, accel_steps;  // the ramp up by position from the entry's velocity (planner.h)
+  uint32_t exit_sq4, decel_steps;       // the ramp down of an entry run alone (else read from the block)
+  uint8_t alone;         // runs from rest to rest: cruise vc_rest, exit at the stop rate, never joins the next
   uint16_t elapsed_ms;   // since the entry started (saturates)
   uint16_t duration_ms;
   uint8_t limits_start;  // limit inputs when the motion started: only new triggers are faults
@@ -170,12 +176,21 @@ void st_step_isr(void) {
       hal_step_low();
       return;
     }
-    st.ready = 0;  // the next segment of the block, prepared by the profile tick: no gap
-    if (st.cur)
+    st.ready = 0;  // the next segment (of the block, or of the next move), prepared by the profile tick: no gap
+    uint8_t dir;
+    if (st.cur) {
       ST_LOAD(0);
-    else
+      dir = segs[0].dirbits;
+    } else {
       ST_LOAD(1);
+      dir = segs[1].dirbits;
+    }
     st.gen++;
+    if (dir != st.dirbits) {  // a new move: DIR after this STEP's falling edge (the loads above kept it up long
+      hal_step_low();         // enough), an interval before the next rise
+      st.dirbits = dir;
+      hal_dir_write(dir);
+    }
   }
   const uint16_t iv = st.iv16;
   if (iv)
@@ -269,6 +284,13 @@ static void set_interval(uint32_t iv) {
   hal_irq_restore(s);
 }
 
+static uint8_t dir_bits(uint8_t dir_positive) {
+  uint8_t invert = 0;
+  for (uint8_t i = 0; i < RBX1_JOINTS; i++)
+    if (SETTING(i, RBX1_KEY_INVERT_DIR)) invert |= (uint8_t)(1u << i);
+  return (uint8_t)((dir_positive ^ invert) & 0x3F);
+}
+
 // Fills segs[g] with the dominant steps k0.. of block b (up to SEG_MAX of them).
 static void prepare(uint8_t g, const plan_block *b, uint32_t k0) {
   seg_t *sg = &segs[g];
@@ -278,6 +300,8 @@ static void prepare(uint8_t g, const plan_block *b, uint32_t k0) {
   sg->k0 = k0;
   sg->m = m;
   sg->dir = b->dir_positive;
+  sg->dirbits = dir_bits(b->dir_positive);
+  sg->seq = b->seq;
   sg->dom = 0;
   sg->act = 0;
   block_positions(b, k0, sg->base);
@@ -293,23 +317,29 @@ static void prepare(uint8_t g, const plan_block *b, uint32_t k0) {
   }
 }
 
-// The profile tick keeps the next segment of a long block ready.
+// The profile tick keeps the next segment ready: of a long block, or the first of the next move when the two join
+// (the running one not alone, the next a move whose junction allows running on).
 static void prepare_next(void) {
   if (st.ready || !st.running) return;
   const seg_t *sg = &segs[st.cur];
   const plan_block *b = sg->blk;
-  if (!b || sg->k0 + sg->m >= b->n) return;
-  prepare(st.cur ^ 1u, b, sg->k0 + sg->m);
+  if (!b) return;
+  if (sg->k0 + sg->m < b->n) {
+    prepare(st.cur ^ 1u, b, sg->k0 + sg->m);
+  } else {
+    if (pf.entry != ENTRY_QUEUE || b != pf.block || pf.alone) return;
+    const plan_block *nb = queue_second();
+    if (!nb || nb->kind != BLOCK_MOVE || nb->n == 0 || !(nb->joins & PLAN_JOINS)) return;
+    prepare(st.cur ^ 1u, nb, 0);
+  }
   st.ready = 1;  // one byte: the ISR sees all of it or nothing
 }
 
 // Loads block b's first segment (steps stopped) and starts the timer. Interrupts stay on: the step interrupt
 // cannot run while its timer is stopped.
 static void start_steps(const plan_block *b, uint32_t v) {
-  uint8_t invert = 0;
-  for (uint8_t i = 0; i < RBX1_JOINTS; i++)
-    if (SETTING(i, RBX1_KEY_INVERT_DIR)) invert |= (uint8_t)(1u << i);
-  hal_dir_write((uint8_t)((b->dir_positive ^ invert) & 0x3F));  // set now; the first step comes one interval later
+  st.dirbits = dir_bits(b->dir_positive);
+  hal_dir_write(st.dirbits);  // set now; the first step comes one interval later
   st.ready = 0;
   uint8_t g = st.cur ^ 1u;
   prepare(g, b, 0);
@@ -365,9 +395,43 @@ void st_abort(void) {
   settle();  // before the flushed slots are written again
 }
 
+// The executing move decelerates; the moves it runs on into while it does are kept (so the stop never outruns the
+// steps left), the others dropped at once: from the current velocity, at the smallest of their accelerations,
+// twice the distance the stop needs plus two ticks of steps (the stop ramps by 1 ms ticks).
 void st_stop(void) {
   hal_irq_state s = hal_irq_save();
-  queue_flush(pf.entry == ENTRY_QUEUE);
+  const plan_block *b = pf.entry == ENTRY_QUEUE ? pf.block : 0;
+  uint32_t v = pf.v;
+  uint8_t c = st.cur;
+  uint16_t left = st.left;
+  hal_irq_restore(s);
+  uint8_t keep = b ? 1 : 0;
+  if (b && b->kind == BLOCK_MOVE && b->n && segs[c].blk == b) {
+    plan_block *q[QUEUE_SIZE];
+    uint8_t n = queue_blocks(q);
+    uint32_t v2 = v >> 15, a8 = b->a8;
+    v2 *= v2;  // 4 v^2
+    uint32_t have = b->n - (segs[c].k0 + (uint32_t)(segs[c].m - left)), extra = 2 + (v >> 25);
+    for (uint8_t k = 1; k < n && q[k]->kind == BLOCK_MOVE && (q[k]->joins & PLAN_JOINS); k++) {
+      uint32_t need = (v2 > b->stop_sq4 ? (v2 - b->stop_sq4) / a8 : 0) * 2 + extra;
+      if (have >= need) break;
+      if (q[k]->a8 < a8) a8 = q[k]->a8;
+      have += q[k]->n;
+      keep++;
+    }
+  }
+  s = hal_irq_save();
+  if (pf.entry == ENTRY_QUEUE && pf.block) {
+    uint8_t first = queue_first_seq();
+    if (pf.block->kind == BLOCK_MOVE && segs[st.cur].blk) {
+      uint8_t at = (uint8_t)(segs[st.cur].seq - first);  // the ISR may have run on into the next move
+      if (at < QUEUE_SIZE && at >= keep) keep = (uint8_t)(at + 1);
+    }
+    if (st.ready && (uint8_t)(segs[st.cur ^ 1u].seq - first) >= keep) st.ready = 0;
+  } else {
+    keep = 0;
+  }
+  queue_flush(keep);
   pf.stopping = 1;
   hal_irq_restore(s);
 }
@@ -426,7 +490,8 @@ void st_jog(uint8_t joint, uint8_t positive, uint32_t max_steps, uint32_t speed,
   pf.block = 0;
   pf.v = pf.v0 = pf.vc = v;  // constant speed: no ramp (homing speeds are low)
   pf.dv = 0;
-  pf.ramp_steps = 0;  // no ramps
+  pf.accel_steps = pf.decel_steps = 0;  // no ramps
+  pf.alone = 1;
   pf.elapsed_ms = 0;
   pf.duration_ms = 0;
   pf.limits_start = hal_limit_inputs();
@@ -445,6 +510,27 @@ uint8_t st_jog_hit(void) {
   return h;
 }
 
+static uint32_t sq4_of(uint32_t v) {
+  uint32_t e = v >> 15;  // 2v in steps/s
+  return e * e;
+}
+
+// The profile of block b entered at velocity v (16.16): the ramp up from v, cruise, the ramp down to the exit
+// (the block's own look-ahead exit unless alone).
+static void load_profile(const plan_block *b, uint32_t v, uint8_t alone) {
+  pf.alone = alone;
+  pf.v = v;
+  pf.v0 = b->v0;
+  pf.dv = b->dv;
+  pf.a8 = b->a8;
+  pf.vc = alone ? b->vc_rest : b->vc;
+  uint32_t vc_sq4 = sq4_of(pf.vc);
+  pf.entry_sq4 = sq4_of(v);
+  pf.accel_steps = vc_sq4 > pf.entry_sq4 ? (vc_sq4 - pf.entry_sq4) / b->a8 + 1 : 0;
+  pf.exit_sq4 = b->stop_sq4;
+  pf.decel_steps = vc_sq4 > b->stop_sq4 ? (vc_sq4 - b->stop_sq4) / b->a8 + 1 : 0;
+}
+
 // Starts the oldest queue entry.
 static void start_entry(plan_block *b) {
   pf.entry = ENTRY_QUEUE;
@@ -457,15 +543,35 @@ static void start_entry(plan_block *b) {
     hal_servo_write(b->pulse_us);
     return;
   }
-  pf.v = b->v0;
-  pf.v0 = b->v0;
-  pf.vc = b->vc;
-  pf.dv = b->dv;
-  pf.ramp_steps = b->ramp_steps;
-  pf.v0sq4 = b->v0sq4;
-  pf.a8 = b->a8;
   pf.limits_start = hal_limit_inputs();
-  if (b->n) start_steps(b, b->v0);
+  if (!b->n) return;
+  hal_irq_state s = hal_irq_save();
+  uint32_t exit_sq4 = b->exit_sq4;
+  hal_irq_restore(s);
+  // From rest: alone when planned to stop at its end and duration_ms stretched it (its rest-to-rest cruise is
+  // faster than n / duration_ms: run on from that, it could end early), so it keeps that profile and never joins
+  // the next; else it may run on into moves that arrive while it runs.
+  load_profile(b, b->v0, exit_sq4 <= b->stop_sq4 && b->vc_rest > b->vc);
+  start_steps(b, b->v0);
+}
+
+// The ISR ran on from pf.block into the next move (the profile tick sees it within a tick): the finished move
+// completed exactly at its target; the next continues from the current velocity.
+static void advance(void) {
+  hal_irq_state s = hal_irq_save();
+  const plan_block *nb = segs[st.cur].blk;
+  hal_irq_restore(s);
+  plan_block *b = pf.block;
+  if (!b || !nb || nb == b) return;
+  pf.moves_done++;
+  hal_entry_done(b->kind, pf.moves_done, b->target, pf.start, b->target, b->planned_ms, b->pulse_us);
+  memcpy(pf.start, b->target, sizeof(pf.start));
+  queue_pop();
+  b = queue_first();  // == nb
+  pf.block = b;
+  pf.elapsed_ms = 0;
+  pf.duration_ms = b->duration_ms;
+  load_profile(b, pf.v, 0);
 }
 
 static void complete_entry(void) {
@@ -496,38 +602,57 @@ static uint32_t isqrt32(uint32_t x) {
   return r;
 }
 
-// The trapezoid by position: v^2 = v0^2 + 2 a s, s = steps from the nearer end (the first and the last interval
-// run at v0), capped at vc. Position-based, so the ramp-down ends at rest exactly where the steps run out. A
-// controlled stop decelerates by time from the current velocity instead.
+// The trapezoid by position: 4 v^2 = 4 v_entry^2 + 8 a s from the entry and 4 v_exit^2 + 8 a s to the exit (s
+// in steps; the first interval runs at the entry's velocity, the last at the exit's), capped at vc. The ramp down
+// is position-based, so it ends at the exit velocity exactly where the steps run out. When the look-ahead raised
+// the running move's exit (more moves arrived) the velocity rises by time at the acceleration, never in a jump.
+// A controlled stop decelerates by time from the current velocity.
 static void ramp(void) {
   hal_irq_state s = hal_irq_save();
   uint8_t c = st.cur;
   uint16_t l16 = st.left;
   hal_irq_restore(s);
   const seg_t *sg = &segs[c];
-  uint32_t n = pf.block ? pf.block->n : jog.n;
-  uint32_t done = sg->k0 + (uint32_t)(sg->m - l16), left = n - done;
-  uint32_t v;
+  const plan_block *b = pf.block ? pf.block : &jog;
+  if (sg->blk != b) return;  // the ISR ran on into the next move: advance() on the next tick
+  uint32_t done = sg->k0 + (uint32_t)(sg->m - l16), left = b->n - done;
+  uint32_t exit_sq4 = pf.exit_sq4, decel = pf.decel_steps;
+  if (!pf.alone) {
+    s = hal_irq_save();
+    exit_sq4 = b->exit_sq4;
+    decel = b->decel_steps;
+    hal_irq_restore(s);
+  }
+  // The interval set now is used after the next step (j = done + 1), between steps j and j + 1. Ramping down,
+  // also look ahead by the steps of the coming tick.
+  uint32_t ahead = 2 + (pf.v >> 26);  // + steps per 1 ms tick (v / 1024: no division on the AVR)
+  uint32_t from_end = left > ahead ? left - ahead : 0;
+  uint32_t up = done + 1, sq = 0xFFFFFFFFUL;
+  uint8_t rising = 0;
+  if (up < pf.accel_steps) {
+    sq = pf.entry_sq4 + pf.a8 * up;
+    rising = 1;
+  }
+  if (from_end < decel) {
+    uint32_t dn = exit_sq4 + pf.a8 * from_end;
+    if (dn < sq) {
+      sq = dn;
+      rising = 0;
+    }
+  }
+  uint32_t v = pf.vc;
+  if (sq != 0xFFFFFFFFUL) {
+    v = isqrt32(sq) << 15;  // isqrt gives 2v in steps/s; 16.16 is v << 16
+    if (v > pf.vc) v = pf.vc;
+  }
+  if (v < pf.v0) v = pf.v0;
+  if (!rising && v > pf.v + pf.dv) v = pf.v + pf.dv;
   if (pf.stopping) {
-    v = pf.v;
-    if (v <= pf.v0 + pf.dv) {  // at the start/stop rate: stop here
+    if (pf.v <= pf.v0 + pf.dv) {  // at the start/stop rate: stop here
       stop_steps();
       return;
     }
-    v -= pf.dv;
-  } else {
-    // The interval set now is used after the next step (j = done + 1), between steps j and j + 1:
-    // s = min(j, n - 1 - j). Ramping down, also look ahead by the steps of the coming tick.
-    uint32_t ahead = 2 + (pf.v >> 26);  // + steps per 1 ms tick (v / 1024: no division on the AVR)
-    uint32_t from_end = left > ahead ? left - ahead : 0;
-    uint32_t d = done + 1 < from_end ? done + 1 : from_end;
-    if (d >= pf.ramp_steps) {
-      v = pf.vc;
-    } else {
-      v = isqrt32(pf.v0sq4 + pf.a8 * d) << 15;  // isqrt gives 2v in steps/s; 16.16 is v << 16
-      if (v > pf.vc) v = pf.vc;
-      if (v < pf.v0) v = pf.v0;
-    }
+    if (v > pf.v - pf.dv) v = pf.v - pf.dv;
   }
   if (v == pf.v) return;  // cruising: the interval stands (saves the division)
   pf.v = v;
@@ -571,6 +696,7 @@ void st_profile_isr(void) {
   }
   if (pf.elapsed_ms != 0xFFFF) pf.elapsed_ms++;
   if (moving) {
+    if (pf.entry == ENTRY_QUEUE) advance();
     prepare_next();
     ramp();
     return;

@@ -1,0 +1,273 @@
+// test_lookahead.cpp - the look-ahead on the simulated firmware: a stream of 500 short moves (a circle of two joints)
+// runs without stopping between them, ends exactly at the last target, keeps every joint within its MAX_SPEED and
+// ACCEL (measured from the step timestamps) and each move within its duration_ms; a corner slows to the junction
+// speed of the rule (firmware/README.md, Look-ahead), a reversal stops; STOP mid-stream stops within ACCEL.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <vector>
+
+#include "fw_fixture.hpp"
+
+namespace rbx1::fwtest {
+namespace {
+
+constexpr double kHz = 2e6;  // simulated ticks per second
+
+using Target = std::array<int32_t, 6>;
+
+// Every pulse with its time and signed direction, every completed entry's time.
+struct Trace {
+  std::array<std::vector<std::pair<uint64_t, int>>, 6> steps;
+  std::vector<uint64_t> done;
+  void attach() {
+    sim::board().on_step = [this](uint8_t mask, uint64_t now) {
+      for (int i = 0; i < 6; i++)
+        if (mask & (1u << i)) steps[i].push_back({now, (sim::board().dir_level >> i) & 1 ? 1 : -1});
+    };
+    sim::board().on_entry_done = [this](uint8_t, uint16_t, const int32_t*, const int32_t*, const int32_t*, uint16_t,
+                                        uint16_t) { done.push_back(sim::board().now); };
+  }
+  // Every pulse of every joint, in time order.
+  std::vector<uint64_t> all() const {
+    std::vector<uint64_t> t;
+    for (const auto& s : steps)
+      for (const auto& p : s) t.push_back(p.first);
+    std::sort(t.begin(), t.end());
+    return t;
+  }
+  // Joint j's position (steps from the start) at tick t.
+  int64_t position(int j, uint64_t t) const {
+    int64_t p = 0;
+    for (const auto& s : steps[j]) {
+      if (s.first > t) break;
+      p += s.second;
+    }
+    return p;
+  }
+};
+
+// n moves along 1.1 turns of a circle of radius r steps in J1/J2 from 0 (tools/avrsim/stream.py streams the same
+// shape, with longer moves, to the real ELF).
+std::vector<Target> circle(int n, double r) {
+  std::vector<Target> out;
+  for (int k = 1; k <= n; k++) {
+    double a = 2 * M_PI * 1.1 * k / n;
+    out.push_back({(int32_t)std::lround(r * std::cos(a) - r), (int32_t)std::lround(r * std::sin(a)), 0, 0, 0, 0});
+  }
+  return out;
+}
+
+// The junction rule, independently of planner.cpp: the largest dominant rate at the junction of moves a -> b, c.
+double junction_speed(const Target& a, const Target& b, const Target& c, const double vmax[6], const double acc[6]) {
+  double da[6], db[6], na = 0, nb = 0;
+  for (int i = 0; i < 6; i++) {
+    da[i] = b[i] - a[i];
+    db[i] = c[i] - b[i];
+    na = std::max(na, std::fabs(da[i]));
+    nb = std::max(nb, std::fabs(db[i]));
+  }
+  double v = 1e30;
+  for (int i = 0; i < 6; i++) {
+    if (da[i]) v = std::min(v, vmax[i] * na / std::fabs(da[i]));
+    if (db[i]) v = std::min(v, vmax[i] * nb / std::fabs(db[i]));
+  }
+  for (int i = 0; i < 6; i++) {
+    double d = std::fabs(da[i] / na - db[i] / nb);
+    if (d > 0) v = std::min({v, std::sqrt(acc[i] / 2) / d, std::sqrt(acc[i] * std::min(na, nb) / d)});
+  }
+  return v;
+}
+
+// Sends every target as soon as the queue has room (QUEUE_FULL: let time run), then runs to the end.
+void stream(Fw& fw, const std::vector<Target>& targets, uint16_t duration_ms) {
+  for (size_t k = 0; k < targets.size();) {
+    uint8_t st = fw.move(std::vector<int32_t>(targets[k].begin(), targets[k].end()), duration_ms);
+    if (st == RBX1_OK)
+      k++;
+    else if (st == RBX1_QUEUE_FULL)
+      fw.run_ms(1);
+    else
+      FAIL() << "MOVE " << k << ": status " << (int)st;
+  }
+  fw.run_until_idle();
+}
+
+struct Measured {
+  double max_speed[6] = {}, max_accel[6] = {};
+};
+
+// Joint speeds and accelerations from the positions at 1 ms steps: speed over windows of kSpeedW, acceleration as
+// the second difference over windows of kAccelW (each position is exact at its instant: the quantisation is within
+// one step, so 1/W and 4/W^2 are the tolerances).
+constexpr double kSpeedW = 0.02, kAccelW = 0.1;
+Measured measure(const Trace& tr, uint64_t t0, uint64_t t1) {
+  Measured m;
+  const uint64_t ws = (uint64_t)(kSpeedW * kHz), wa = (uint64_t)(kAccelW * kHz), dt = (uint64_t)(kHz / 1000);
+  for (int j = 0; j < 6; j++) {
+    if (tr.steps[j].empty()) continue;
+    std::vector<int64_t> p;  // position at t0 + k ms
+    int64_t pos = 0;
+    size_t i = 0;
+    for (uint64_t t = t0; t <= t1; t += dt) {
+      while (i < tr.steps[j].size() && tr.steps[j][i].first <= t) pos += tr.steps[j][i++].second;
+      p.push_back(pos);
+    }
+    const size_t ks = ws / dt, ka = wa / dt;
+    for (size_t k = 0; k + ks < p.size(); k++)
+      m.max_speed[j] = std::max(m.max_speed[j], std::fabs((double)(p[k + ks] - p[k])) / kSpeedW);
+    for (size_t k = 0; k + 2 * ka < p.size(); k++)
+      m.max_accel[j] = std::max(
+          m.max_accel[j], std::fabs((double)(p[k + 2 * ka] - 2 * p[k + ka] + p[k])) / (kAccelW * kAccelW));
+  }
+  return m;
+}
+
+void expect_within_limits(const Measured& m, const double vmax[6], const double acc[6]) {
+  for (int j = 0; j < 6; j++) {
+    EXPECT_LE(m.max_speed[j], vmax[j] + 1 / kSpeedW) << "J" << j + 1;
+    EXPECT_LE(m.max_accel[j], acc[j] * 1.02 + 4 / (kAccelW * kAccelW)) << "J" << j + 1;
+  }
+}
+
+class Lookahead : public Fw {
+ protected:
+  void SetUp() override {
+    Fw::SetUp();
+    ready();
+    for (int j = 0; j < 6; j++) {
+      vmax_[j] = j < 2 ? 2000 : 4000;
+      acc_[j] = j < 2 ? 20000 : 8000;
+      ASSERT_EQ(config_set((uint8_t)j, RBX1_KEY_MAX_SPEED, (int32_t)vmax_[j]), RBX1_OK);
+      ASSERT_EQ(config_set((uint8_t)j, RBX1_KEY_ACCEL, (int32_t)acc_[j]), RBX1_OK);
+    }
+    tr_.attach();
+  }
+  double vmax_[6], acc_[6];
+  Trace tr_;
+};
+
+// 500 moves of 14..22 dominant steps (about 10 ms each): no stop between them, exact, within the limits.
+TEST_F(Lookahead, CircleOfFiveHundredMovesRunsWithoutStopping) {
+  const std::vector<Target> c = circle(500, 1592);
+  stream(*this, c, 0);
+  rbx1_status_resp s = status();
+  ASSERT_EQ(s.moves_done, 500);
+  for (int j = 0; j < 6; j++) {
+    EXPECT_EQ(s.position[j], c.back()[j]) << "J" << j + 1;
+    EXPECT_EQ(sim::board().net[j], c.back()[j]) << "J" << j + 1 << ": pulses on the pins";
+  }
+  ASSERT_EQ(tr_.done.size(), 500u);
+  // Slowest junction of the rule (the rounding of the targets to steps makes some corners sharper).
+  double vj = 1e30;
+  Target prev{};
+  for (size_t k = 0; k + 1 < c.size(); k++) {
+    vj = std::min(vj, junction_speed(prev, c[k], c[k + 1], vmax_, acc_));
+    prev = c[k];
+  }
+  const double v0 = std::sqrt(acc_[0] / 2);  // the stop rate of a move led by J1 or J2
+  ASSERT_GT(vj, 2 * v0) << "the circle's junctions allow running on";
+  // From the 20th move's end to the 480th's (past the ramps), no gap between pulses longer than the slowest
+  // junction's step interval (+25% for the 1 ms ramp ticks); over the whole stream none longer than the stop rate's
+  // (a stop between two moves would take that interval, a tick and that interval again).
+  std::vector<uint64_t> all = tr_.all();
+  double mid_gap = 0, gap = 0;
+  for (size_t k = 1; k < all.size(); k++) {
+    double g = (double)(all[k] - all[k - 1]) / kHz;
+    gap = std::max(gap, g);
+    if (all[k - 1] >= tr_.done[19] && all[k] <= tr_.done[479]) mid_gap = std::max(mid_gap, g);
+  }
+  EXPECT_LE(mid_gap, 1.25 / vj) << "junction speed " << vj;
+  EXPECT_LE(gap, 1.02 / v0);
+  // Every move completed within its share: the stream takes about its length at the nominal speed.
+  double took = (double)(all.back() - all.front()) / kHz, length = 0;
+  prev = Target{};
+  for (const Target& t : c) {
+    length += std::max(std::abs(t[0] - prev[0]), std::abs(t[1] - prev[1]));
+    prev = t;
+  }
+  EXPECT_LE(took, length / vj + 0.2) << "ramps at both ends: 2 * vmax / acc = 0.2 s";
+  Measured m = measure(tr_, all.front(), all.back());
+  expect_within_limits(m, vmax_, acc_);
+  std::printf("circle: %zu moves, %.3f s, junction speed >= %.0f steps/s, largest gap %.3f ms mid-stream; J1 %.0f "
+              "steps/s %.0f steps/s^2, J2 %.0f steps/s %.0f steps/s^2\n",
+              c.size(), took, vj, mid_gap * 1e3, m.max_speed[0], m.max_accel[0], m.max_speed[1], m.max_accel[1]);
+}
+
+// duration_ms stays a minimum time when moves run on: each of 100 moves of 20 steps at 15 ms (1333 steps/s).
+TEST_F(Lookahead, JoinedMovesKeepTheirDuration) {
+  std::vector<Target> line;
+  for (int k = 1; k <= 100; k++) line.push_back({20 * k, 7 * k, 0, 0, 0, 0});
+  stream(*this, line, 15);
+  ASSERT_EQ(tr_.done.size(), 100u);
+  EXPECT_EQ(status().position[0], 2000);
+  for (size_t k = 1; k < tr_.done.size(); k++) {
+    double ms = (double)(tr_.done[k] - tr_.done[k - 1]) / (kHz / 1000);
+    EXPECT_GE(ms, 15 - 1) << "move " << k << " (completions are seen on 1 ms ticks)";
+  }
+  // From the 5th move's end (the first, stretched by duration_ms and alone in the queue when it started, stops; the
+  // ramps from and to rest take 44 steps each) to the 96th's, no gap longer than the nominal interval (+25%).
+  std::vector<uint64_t> t = tr_.steps[0].empty() ? std::vector<uint64_t>{} : tr_.all();
+  double gap = 0;
+  for (size_t k = 1; k < t.size(); k++)
+    if (t[k - 1] >= tr_.done[4] && t[k] <= tr_.done[95]) gap = std::max(gap, (double)(t[k] - t[k - 1]) / kHz);
+  EXPECT_LE(gap, 1.25 * 0.015 / 20);
+  EXPECT_GE((double)(t.back() - t.front()) / kHz, 99 * 0.015);
+}
+
+// A 10 degree corner slows to the junction speed of the rule, not to a stop; a reversal stops.
+TEST_F(Lookahead, CornerSlowsToTheRuleAndReversalStops) {
+  const std::vector<Target> path = {Target{3000, 0, 0, 0, 0, 0}, Target{6000, 529, 0, 0, 0, 0},
+                                    Target{3000, 0, 0, 0, 0, 0}};
+  stream(*this, path, 0);
+  ASSERT_EQ(tr_.done.size(), 3u);
+  const double vj = junction_speed(Target{}, path[0], path[1], vmax_, acc_);
+  const double v0 = std::sqrt(acc_[0] / 2);
+  // The slowest rate around the corner (1/interval of the union of J1 and J2 within 50 ms of it) and at the
+  // reversal.
+  auto slowest_near = [&](uint64_t t) {
+    std::vector<uint64_t> all = tr_.all();
+    double worst = 1e30;
+    for (size_t k = 1; k < all.size(); k++)
+      if (all[k] + 100000 > t && all[k - 1] < t + 100000)
+        worst = std::min(worst, kHz / (double)(all[k] - all[k - 1]));
+    return worst;
+  };
+  EXPECT_GT(vj, 1.5 * v0);
+  EXPECT_NEAR(slowest_near(tr_.steps[0][2999].first), vj, 0.1 * vj) << "corner: junction speed " << vj;
+  EXPECT_LT(slowest_near(tr_.steps[0][5999].first), 1.02 * v0) << "reversal: at the stop rate";
+  for (int j = 0; j < 6; j++) EXPECT_EQ(status().position[j], path.back()[j]);
+  Measured m = measure(tr_, tr_.all().front(), tr_.all().back());
+  expect_within_limits(m, vmax_, acc_);
+}
+
+// STOP while the circle streams at speed: it decelerates within ACCEL through the moves it needs, drops the rest,
+// and the counters balance (accepted = done + flushed).
+TEST_F(Lookahead, StopMidStreamDeceleratesWithinTheLimits) {
+  const std::vector<Target> c = circle(500, 1592);
+  size_t k = 0;
+  uint64_t t_start = sim::board().now;
+  while (sim::board().now - t_start < (uint64_t)(0.5 * kHz)) {  // half a second into the stream
+    uint8_t st = move(std::vector<int32_t>(c[k].begin(), c[k].end()), 0);
+    if (st == RBX1_OK)
+      k++;
+    else
+      run_ms(1);
+  }
+  ASSERT_EQ(simple(RBX1_MSG_STOP), RBX1_OK);
+  uint64_t t_stop = sim::board().now;
+  run_until_idle();
+  rbx1_status_resp s = status();
+  EXPECT_EQ(s.state, RBX1_STATE_IDLE);
+  EXPECT_EQ(s.moves_accepted, (uint16_t)(s.moves_done + s.moves_flushed));
+  EXPECT_EQ(s.queue_free, 16);
+  for (int j = 0; j < 6; j++) EXPECT_EQ(s.position[j], sim::board().net[j]);
+  std::vector<uint64_t> all = tr_.all();
+  ASSERT_GT(all.back(), t_stop) << "it decelerated, not stopped dead";
+  EXPECT_LT((double)(all.back() - t_stop) / kHz, 2 * vmax_[0] / acc_[0] + 0.01);
+  Measured m = measure(tr_, all.front(), all.back());
+  expect_within_limits(m, vmax_, acc_);
+}
+
+}  // namespace
+}  // namespace rbx1::fwtest

@@ -1,0 +1,178 @@
+#!/usr/bin/python3
+"""stream.py - the look-ahead on the real firmware ELF: streams a list of MOVE targets (a circle of 500 short moves by
+default) to rbx1-avrsim --trace (real time) as fast as the queue takes them, then measures from the pin-level trace: exact counts,
+the longest gap between STEP pulses mid-stream against the slowest junction speed of the rule (firmware/README.md,
+Look-ahead), every joint's speed and acceleration from the step timestamps, STEP pulse width and DIR setup time.
+Used by tools/avrsim/test/test_lookahead.py (thresholds) and tools/bench/motion (figures).
+Usage: stream.py [--moves N] [--json OUT]"""
+import argparse
+import json
+import math
+import os
+import sys
+import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.realpath(__file__)))
+import timing  # noqa: E402
+from timing import HZ, Board, MsgType, State, Status  # noqa: E402
+
+SPEED_W = 0.02   # s: speed over windows of this length (tolerance: one step per window)
+ACCEL_W = 0.1    # s: acceleration as the second difference of positions over windows of this length (4 steps / W^2)
+VMAX = [2000, 2000, 4000, 4000, 4000, 4000]    # MAX_SPEED per joint, steps/s
+ACCEL = [20000, 20000, 8000, 8000, 8000, 8000]  # ACCEL per joint, steps/s^2
+
+
+def circle(n=500, r=5787.0, turns=1.1):
+    """n moves along `turns` of a circle of radius r steps in J1/J2 from 0 (the default: 57..80 dominant steps each,
+    40 ms at 2000 steps/s, so that sixteen queued moves keep 0.6 s of motion ahead of a host slowed by the load)."""
+    a = [2 * math.pi * turns * k / n for k in range(1, n + 1)]
+    return [[round(r * math.cos(x) - r), round(r * math.sin(x)), 0, 0, 0, 0] for x in a]
+
+
+def junction_speed(a, b, c, vmax=VMAX, acc=ACCEL):
+    """The rule, independently of planner.cpp: the largest dominant rate at the junction of moves a -> b -> c."""
+    da = [y - x for x, y in zip(a, b)]
+    db = [y - x for x, y in zip(b, c)]
+    na, nb = max(map(abs, da)), max(map(abs, db))
+    v = min([vmax[i] * na / abs(da[i]) for i in range(6) if da[i]] +
+            [vmax[i] * nb / abs(db[i]) for i in range(6) if db[i]])
+    for i in range(6):
+        d = abs(da[i] / na - db[i] / nb)
+        if d > 0:
+            v = min(v, math.sqrt(acc[i] / 2) / d, math.sqrt(acc[i] * min(na, nb) / d))
+    return v
+
+
+def run(trace_path, targets, duration_ms=0, vmax=VMAX, acc=ACCEL):
+    """Streams targets (from position 0) to the real ELF in real time (under --fast the simulation outruns a host
+    that the machine's load holds up, and the queue runs empty); returns (STATUS after, avrsim JSON, MOVEs refused
+    as QUEUE_FULL, the MOVEs after the first 16 that found the queue empty: the host fell behind)."""
+    try:  # the host must keep ahead of the simulated arm: ask for the share rbx1-avrsim asks for (root only)
+        os.setpriority(os.PRIO_PROCESS, 0, -10)
+    except OSError:
+        pass
+    with tempfile.TemporaryDirectory(prefix="rbx1-stream-") as tmp:
+        b = Board(trace_path, tmp, fast=False)
+        full, starved = 0, []
+        try:
+            b.queue = b.req(MsgType.HELLO, proto_version=timing.PROTO_VERSION)["queue_size"]
+            b.req(MsgType.CONFIG_SET, joint=0xFF, key=timing.Key.HEARTBEAT_MS, value=60000)
+            for j in range(6):
+                b.req(MsgType.CONFIG_SET, joint=j, key=timing.Key.MAX_SPEED, value=vmax[j])
+                b.req(MsgType.CONFIG_SET, joint=j, key=timing.Key.ACCEL, value=acc[j])
+            b.req(MsgType.ENABLE, enable=1)
+            b.req(MsgType.SET_POSITION, position=[0] * 6)
+            before = b.req(MsgType.STATUS)
+            k = 0
+            while k < len(targets):
+                r = b.link.request(MsgType.MOVE, target=targets[k], duration_ms=duration_ms)
+                if r["status"] == Status.OK:
+                    k += 1
+                    if k > b.queue and r["queue_free"] >= b.queue - 1:
+                        starved.append(k)
+                elif r["status"] == Status.QUEUE_FULL:
+                    full += 1
+                else:
+                    raise RuntimeError(f"MOVE {k}: status {r['status']}")
+            s = b.wait_state(State.IDLE)
+            s["moves"] = (s["moves_done"] - before["moves_done"]) % 65536
+        finally:
+            b.close()
+        with open(b.json) as f:
+            sim = json.load(f)
+    return s, sim, full, starved
+
+
+def analyse(trace_path):
+    """Per joint: STEP rise cycles with the direction (+1/-1), the shortest pulse, the shortest DIR-to-STEP setup."""
+    steps = [[] for _ in range(6)]
+    level, dirs, rise = [0] * 6, [0] * 6, [None] * 6
+    dir_at = [None] * 6
+    width = setup = None
+    with open(trace_path) as f:
+        for line in f:
+            if line[0] not in "SD":
+                continue
+            k, c, j, v = line.split()[:4]
+            c, j, v = int(c), int(j), int(v)
+            if k == "D":
+                if v != dirs[j]:
+                    dir_at[j] = c
+                dirs[j] = v
+            elif v != level[j]:
+                level[j] = v
+                if v:
+                    steps[j].append((c, 1 if dirs[j] else -1))
+                    rise[j] = c
+                    if dir_at[j] is not None:
+                        setup = c - dir_at[j] if setup is None else min(setup, c - dir_at[j])
+                        dir_at[j] = None
+                elif rise[j] is not None:
+                    width = c - rise[j] if width is None else min(width, c - rise[j])
+    return steps, width, setup
+
+
+def limits(steps, t0, t1):
+    """Largest speed and acceleration per joint (steps/s, steps/s^2) from the positions at 1 ms steps."""
+    ms = HZ // 1000
+    speed, accel = [0.0] * 6, [0.0] * 6
+    ks, ka = round(SPEED_W * 1000), round(ACCEL_W * 1000)
+    for j in range(6):
+        if not steps[j]:
+            continue
+        p, pos, i = [], 0, 0
+        for t in range(t0, t1 + 1, ms):
+            while i < len(steps[j]) and steps[j][i][0] <= t:
+                pos += steps[j][i][1]
+                i += 1
+            p.append(pos)
+        speed[j] = max((abs(p[k + ks] - p[k]) / SPEED_W for k in range(len(p) - ks)), default=0.0)
+        accel[j] = max((abs(p[k + 2 * ka] - 2 * p[k + ka] + p[k]) / ACCEL_W ** 2 for k in range(len(p) - 2 * ka)),
+                       default=0.0)
+    return speed, accel
+
+
+def figures(trace_path, targets, vmax=VMAX, acc=ACCEL):
+    """Everything the test checks, from the trace."""
+    steps, width, setup = analyse(trace_path)
+    all_t = sorted(c for s in steps for c, _ in s)
+    ramp = max(v / a for v, a in zip(vmax, acc)) + 0.05  # s of the ramps at both ends, and a margin
+    mid0, mid1 = all_t[0] + ramp * HZ, all_t[-1] - ramp * HZ
+    gaps = [(b - a) for a, b in zip(all_t, all_t[1:])]
+    mid = [(b - a) for a, b in zip(all_t, all_t[1:]) if a >= mid0 and b <= mid1]
+    prev = [0] * 6
+    vj = math.inf
+    for k in range(len(targets) - 1):
+        vj = min(vj, junction_speed(prev, targets[k], targets[k + 1], vmax, acc))
+        prev = targets[k]
+    speed, accel = limits(steps, all_t[0], all_t[-1])
+    v0 = math.sqrt(min(acc[j] for j in range(6) if steps[j]) / 2)
+    return {"net_steps": [sum(d for _, d in s) for s in steps], "pulses": sum(len(s) for s in steps),
+            "seconds": (all_t[-1] - all_t[0]) / HZ, "junction_speed_min": vj, "stop_rate": v0,
+            "max_gap_mid_s": max(mid) / HZ, "max_gap_s": max(gaps) / HZ,
+            "max_speed": speed, "max_accel": accel, "min_pulse_width_cycles": width,
+            "min_dir_setup_cycles": setup}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--moves", type=int, default=500)
+    ap.add_argument("--json", help="write the figures here")
+    args = ap.parse_args()
+    targets = circle(args.moves)
+    with tempfile.TemporaryDirectory(prefix="rbx1-trace-") as tmp:
+        trace = os.path.join(tmp, "trace.txt")
+        status, sim, full, starved = run(trace, targets)
+        fig = figures(trace, targets)
+    fig.update(moves=status["moves"], position=status["position"], avrsim_steps=sim["steps"], refused_full=full,
+               starved=len(starved))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(fig, f, indent=2)
+    json.dump(fig, sys.stdout, indent=1)
+    print()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

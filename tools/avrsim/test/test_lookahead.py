@@ -1,0 +1,54 @@
+"""test_lookahead.py - the look-ahead on the real firmware ELF under rbx1-avrsim (tools/avrsim/stream.py): 500 short
+moves along a circle run without stopping between them, end exactly at the last target, and keep every joint within
+its MAX_SPEED and ACCEL as measured from the pin-level trace. Env: AVRSIM, RBX1_FIRMWARE_ELF, RBX1_SOURCE_DIR."""
+import os
+import sys
+
+import pytest
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.realpath(__file__))))
+import stream  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def result(tmp_path_factory):
+    assert os.path.exists(stream.timing.ELF), f"{stream.timing.ELF} missing: run tools/build-firmware"
+    trace = str(tmp_path_factory.mktemp("trace") / "trace.txt")
+    targets = stream.circle(500)
+    status, sim, full, starved = stream.run(trace, targets)
+    return targets, status, sim, (full, starved), stream.figures(trace, targets)
+
+
+def test_exact_at_the_last_target(result):
+    targets, status, sim, _, fig = result
+    assert status["moves"] == 500
+    # pins (trace), pins (avrsim's own counters) and the firmware's STATUS agree with the last target
+    assert fig["net_steps"] == sim["steps"] == status["position"] == targets[-1]
+    assert targets[-1][:2] != [0, 0]
+
+
+def test_no_stop_between_the_moves(result):
+    _, _, _, (full, starved), fig = result
+    assert full > 0, "the queue never filled: the stream did not keep ahead of the arm"
+    assert not starved, f"the host let the queue run empty at moves {starved} (a loaded machine?): the arm stopped"
+    assert fig["junction_speed_min"] > 2 * fig["stop_rate"]
+    # mid-stream (past the ramps at both ends) no gap between pulses over the slowest junction's interval (+25% for
+    # the 1 ms ramp ticks); none over the stop rate's interval anywhere (a stop takes it, a tick and it again)
+    assert fig["max_gap_mid_s"] <= 1.25 / fig["junction_speed_min"], fig
+    assert fig["max_gap_s"] <= 1.02 / fig["stop_rate"], fig
+    ideal = sum(max(abs(b[0] - a[0]), abs(b[1] - a[1]))
+                for a, b in zip([[0] * 6] + result[0][:-1], result[0])) / fig["junction_speed_min"]
+    assert fig["seconds"] <= ideal + 2 * max(v / a for v, a in zip(stream.VMAX, stream.ACCEL))
+
+
+def test_every_joint_within_its_limits(result):
+    _, _, _, _, fig = result
+    for j in range(6):
+        assert fig["max_speed"][j] <= stream.VMAX[j] + 1 / stream.SPEED_W, (j, fig["max_speed"])
+        assert fig["max_accel"][j] <= stream.ACCEL[j] * 1.02 + 4 / stream.ACCEL_W ** 2, (j, fig["max_accel"])
+
+
+def test_pulses_and_dir_setup(result):
+    _, _, _, _, fig = result
+    assert fig["min_pulse_width_cycles"] >= 32  # pins.h: at least 2 us, also when a move starts with a DIR change
+    assert fig["min_dir_setup_cycles"] is not None and fig["min_dir_setup_cycles"] >= 16  # DIR 1 us before STEP
