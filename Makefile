@@ -32,6 +32,7 @@ sanitize: deps
 
 bench: host firmware
 	@tools/bench/firmware
+	@tools/bench/motion
 	@tools/bench/perception-speed
 	@tools/bench/perception-accuracy
 	@tools/bench/perception-corpus

@@ -2,7 +2,8 @@
 """stream.py - the look-ahead on the real firmware ELF: streams a list of MOVE targets (a circle of 500 short moves by
 default) to rbx1-avrsim --trace (real time) as fast as the queue takes them, then measures from the pin-level trace: exact counts,
 the longest gap between STEP pulses mid-stream against the slowest junction speed of the rule (firmware/README.md,
-Look-ahead), every joint's speed and acceleration from the step timestamps, STEP pulse width and DIR setup time.
+Look-ahead), every joint's speed and acceleration from the step timestamps, STEP pulse width and DIR setup time,
+the profile tick's cycles, and the interrupts-off windows and compare writes (tools/avrsim/timing.py's analysis).
 Used by tools/avrsim/test/test_lookahead.py (thresholds) and tools/bench/motion (figures).
 Usage: stream.py [--moves N] [--json OUT]"""
 import argparse
@@ -83,14 +84,29 @@ def run(trace_path, targets, duration_ms=0, vmax=VMAX, acc=ACCEL):
     return s, sim, full, starved
 
 
-def analyse(trace_path):
-    """Per joint: STEP rise cycles with the direction (+1/-1), the shortest pulse, the shortest DIR-to-STEP setup."""
+PROFILE_VECTOR = 32  # TIMER3_COMPA: the 1 kHz profile tick
+
+
+def analyse(trace_path, ticks=None):
+    """Per joint: STEP rise cycles with the direction (+1/-1), the shortest pulse, the shortest DIR-to-STEP setup.
+    ticks (a list) gets the cycles of every profile tick (entry to exit, the step interrupts it let in included)."""
     steps = [[] for _ in range(6)]
     level, dirs, rise = [0] * 6, [0] * 6, [None] * 6
     dir_at = [None] * 6
     width = setup = None
+    stack = []
     with open(trace_path) as f:
         for line in f:
+            if line[0] == "E":
+                stack.append((int(line.split()[2]), int(line.split()[1])))
+                continue
+            if line[0] == "X":
+                p = line.split()
+                if stack and stack[-1][0] == int(p[2]):
+                    v, c0 = stack.pop()
+                    if v == PROFILE_VECTOR and ticks is not None:
+                        ticks.append(int(p[1]) - c0)
+                continue
             if line[0] not in "SD":
                 continue
             k, c, j, v = line.split()[:4]
@@ -132,14 +148,31 @@ def limits(steps, t0, t1):
     return speed, accel
 
 
-def figures(trace_path, targets, vmax=VMAX, acc=ACCEL):
-    """Everything the test checks, from the trace."""
-    steps, width, setup = analyse(trace_path)
+def arrivals(steps, targets):
+    """The cycle at which the joints reached each target in turn (moves end exactly at their targets)."""
+    events = sorted((c, j, d) for j in range(6) for c, d in steps[j])
+    pos, out = [0] * 6, []
+    for c, j, d in events:
+        pos[j] += d
+        while len(out) < len(targets) and pos == targets[len(out)]:
+            out.append(c)
+    return out
+
+
+def figures(trace_path, targets, starved=(), vmax=VMAX, acc=ACCEL):
+    """Everything the test checks, from the trace. starved: indices of moves that found the queue empty (the host
+    fell behind): the arm had to stop before them, so the gaps from three moves before to two after are left out
+    of the mid-stream figure (a ramp to rest and back spans two moves of the default circle) and counted apart."""
+    ticks = []
+    steps, width, setup = analyse(trace_path, ticks)
     all_t = sorted(c for s in steps for c, _ in s)
     ramp = max(v / a for v, a in zip(vmax, acc)) + 0.05  # s of the ramps at both ends, and a margin
     mid0, mid1 = all_t[0] + ramp * HZ, all_t[-1] - ramp * HZ
+    arr = arrivals(steps, targets)
+    skip = [(arr[max(k - 4, 0)], arr[min(k + 2, len(arr) - 1)]) for k in starved if k - 4 >= 0 and k < len(arr)]
     gaps = [(b - a) for a, b in zip(all_t, all_t[1:])]
-    mid = [(b - a) for a, b in zip(all_t, all_t[1:]) if a >= mid0 and b <= mid1]
+    mid = [(b - a) for a, b in zip(all_t, all_t[1:])
+           if a >= mid0 and b <= mid1 and not any(s0 <= a and b <= s1 for s0, s1 in skip)]
     prev = [0] * 6
     vj = math.inf
     for k in range(len(targets) - 1):
@@ -147,11 +180,17 @@ def figures(trace_path, targets, vmax=VMAX, acc=ACCEL):
         prev = targets[k]
     speed, accel = limits(steps, all_t[0], all_t[-1])
     v0 = math.sqrt(min(acc[j] for j in range(6) if steps[j]) / 2)
+    t = timing.analyse(trace_path)  # interrupts-off windows and compare writes while the look-ahead works
     return {"net_steps": [sum(d for _, d in s) for s in steps], "pulses": sum(len(s) for s in steps),
             "seconds": (all_t[-1] - all_t[0]) / HZ, "junction_speed_min": vj, "stop_rate": v0,
+            "targets_reached_in_order": len(arr), "stops_left_out": len(skip),
             "max_gap_mid_s": max(mid) / HZ, "max_gap_s": max(gaps) / HZ,
             "max_speed": speed, "max_accel": accel, "min_pulse_width_cycles": width,
-            "min_dir_setup_cycles": setup}
+            "min_dir_setup_cycles": setup, "profile_tick_max_cycles": max(ticks, default=None),
+            "profile_tick_mean_cycles": sum(ticks) / len(ticks) if ticks else None,
+            "irq_off_window_max_cycles": t["irq_off_window_max_cycles"],
+            "irq_off_windows_max_cycles": t["irq_off_windows_max_cycles"],
+            "step_isr_wait_max_cycles": t["step_isr_wait_max_cycles"], "ocr1a_late_writes": t["ocr1a_late_writes"]}
 
 
 def main():
@@ -163,9 +202,9 @@ def main():
     with tempfile.TemporaryDirectory(prefix="rbx1-trace-") as tmp:
         trace = os.path.join(tmp, "trace.txt")
         status, sim, full, starved = run(trace, targets)
-        fig = figures(trace, targets)
+        fig = figures(trace, targets, starved)
     fig.update(moves=status["moves"], position=status["position"], avrsim_steps=sim["steps"], refused_full=full,
-               starved=len(starved))
+               starved=starved)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(fig, f, indent=2)

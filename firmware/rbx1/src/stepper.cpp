@@ -207,9 +207,10 @@ void st_step_isr(void) {
 }
 
 // Steps of a joint with `total` steps in n dominant ticks, after k of them (the Bresenham above, counters starting
-// at n - 1, steps exactly floor(k * total / n)).
+// at n - 1, steps exactly floor(k * total / n)). No division at either end (a move's first segment, a whole move).
 static uint32_t share(uint32_t k, uint32_t total, uint32_t n) {
   if (k >= n) return total;
+  if (k == 0) return 0;
   if (n <= SEG_MAX) return (k * total) / n;  // < 2^30: 32-bit arithmetic
   return (uint32_t)(((uint64_t)k * total) / n);
 }
