@@ -342,10 +342,13 @@ TEST(Server, EstopGetsThroughAHundredIdleAndTenFloodingClients) {
   }
   std::vector<std::unique_ptr<Flooder>> flooders;
   for (int i = 0; i < 10; ++i) flooders.push_back(std::make_unique<Flooder>(s.path(), /*reconnect=*/true));
-  for (int i = 0; i < 300; ++i) {
+  // The e-stops go in once the flood is at full strength: 4 MB sent and a flooder already dropped for not reading
+  // (a deadline, not a wait time: a sanitizer build on a loaded machine floods 4 times slower).
+  for (int i = 0; i < 3000; ++i) {
     long sent = 0;
-    for (auto& f : flooders) sent += f->sent();
-    if (sent > 4000000) break;
+    int drops = 0;
+    for (auto& f : flooders) sent += f->sent(), drops += f->drops();
+    if (sent > 4000000 && drops > 0) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   std::vector<double> latencies;
