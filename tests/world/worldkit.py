@@ -112,6 +112,7 @@ def daemon_config(tmp, scene_path, scene, camera):
     vis["background"] = ""
     vis["objects"] = "dark"
     cfg["link"]["heartbeat_ms"] = 50
+    cfg["console"] = {"bind": "127.0.0.1:0"}  # cells run side by side
     d = cfg.setdefault("daemon", {})
     d.update({"status_poll_ms": STATUS_POLL_MS, "verify_pick": True, "pick_retries": 1, "log_level": "info",
               "job_timeout_s": 120.0})
@@ -136,9 +137,14 @@ class Cell:
             cfg = daemon_config(tmp, scene_path, self.scene, self.world.camera)
             if annotate:
                 cfg["daemon"]["annotate"] = str(annotate)
-            self.daemon = e2e.Daemon(tmp, cfg, self.world.port)
+            self.daemon = e2e.Daemon(tmp, cfg, self.world.port, wait_ready=False)
         except BaseException:
             self.world.stop()
+            raise
+        try:
+            self.daemon.wait_ready()
+        except BaseException:
+            self.stop()
             raise
 
     def pick(self, label, place):
