@@ -142,7 +142,15 @@ class Cell:
             self.world.stop()
             raise
         try:
-            self.daemon.wait_ready()
+            deadline = time.monotonic() + 20
+            while True:
+                try:
+                    self.daemon.wait_ready()
+                    break
+                except ConnectionRefusedError:  # its socket bound, not yet listening (a loaded machine)
+                    if self.daemon.proc.poll() is not None or time.monotonic() > deadline:
+                        raise
+                    time.sleep(0.1)
         except BaseException:
             self.stop()
             raise
