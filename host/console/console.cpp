@@ -5,6 +5,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstring>
+#include <map>
 #include <mutex>
 #include <thread>
 
@@ -23,6 +24,13 @@ namespace {
 constexpr int kThreads = 32;     // HTTP worker threads
 constexpr int kMaxStreams = 24;  // event and live streams at once: the rest of the pool stays free for requests
 constexpr auto kStreamPoll = std::chrono::milliseconds(1000);
+// A jog still running after kHoldAfter streams its reply: a space every kPresencePoll until the final line (JSON
+// allows leading white space). A write that fails means the page or client went away: the jog's dead-man STOP.
+constexpr auto kHoldAfter = std::chrono::milliseconds(300);
+constexpr auto kPresencePoll = std::chrono::milliseconds(50);
+// A page names itself (?page=ID on its event stream, X-RBX1-Page on its requests): its jogs last while that stream
+// is open. A browser closing the tab drops the stream; the jog's own request it may keep reading to the end.
+constexpr auto kEventKeepAlive = std::chrono::milliseconds(250);
 
 using json = nlohmann::json;
 
@@ -96,6 +104,30 @@ struct Console::Impl {
   std::atomic<uint64_t> next_request{1};
   int port = 0;
   json info;
+  std::mutex pages_mutex;
+  std::map<std::string, int> pages;  // page id -> its open event streams
+
+  // Counts one open event stream of a page while it lives.
+  struct PageStream {
+    PageStream(Impl& impl, std::string id) : impl_(impl), id_(std::move(id)) {
+      std::lock_guard lock(impl_.pages_mutex);
+      ++impl_.pages[id_];
+    }
+    ~PageStream() {
+      std::lock_guard lock(impl_.pages_mutex);
+      if (--impl_.pages[id_] <= 0) impl_.pages.erase(id_);
+    }
+    Impl& impl_;
+    std::string id_;
+  };
+  bool page_open(const std::string& id) {
+    std::lock_guard lock(pages_mutex);
+    return pages.count(id) > 0;
+  }
+  static bool valid_page_id(const std::string& id) {
+    return !id.empty() && id.size() <= 64 &&
+           id.find_first_not_of("0123456789abcdefABCDEF-") == std::string::npos;
+  }
 
   Impl(ConsoleConfig c, Submit s, camera::FrameSource* camera, double timeout)
       : config(std::move(c)), submit(std::move(s)), job_timeout_s(timeout), live(camera, config.live_fps, config.jpeg_quality) {}
@@ -129,7 +161,7 @@ struct Console::Impl {
   }
 
   // The socket's request layer: the same parse_request, the same handler, one Reply whose lines come here.
-  void run_request(const std::string& line, httplib::Response& res) {
+  void run_request(const std::string& line, httplib::Response& res, const std::string& page = "") {
     daemon::Request request;
     daemon::Error err;
     if (!daemon::parse_request(line, request, err)) {
@@ -148,6 +180,8 @@ struct Console::Impl {
       hub.publish({{"req", id}, {"cmd", cmd}, {"request", daemon::request_json(request)}});
     }
     auto ex = std::make_shared<Exchange>();
+    auto present = std::make_shared<std::atomic<bool>>(true);
+    const bool watch_page = valid_page_id(page) && page_open(page);
     // Called with the reply's lock held: only stores and publishes, never waits.
     daemon::Reply::Sink sink = [this, ex, id, cmd, logged](const std::string& line, bool final_line) {
       json l = json::parse(line, nullptr, false);
@@ -166,8 +200,44 @@ struct Console::Impl {
         ex->events.push_back(l);
       }
     };
-    submit(request, std::make_shared<daemon::Reply>(sink, request.command));
+    const bool dead_man = request.command == daemon::Command::Jog;
+    daemon::Reply::Presence presence;
+    if (dead_man)
+      presence = [this, present, watch_page, page] {
+        if (!present->load()) return false;
+        if (watch_page && !page_open(page)) {
+          spdlog::warn("console: the page of a jog went away mid-move (its event stream closed)");
+          present->store(false);
+          return false;
+        }
+        return true;
+      };
+    submit(request, std::make_shared<daemon::Reply>(sink, request.command, presence));
     std::unique_lock lock(ex->mutex);
+    if (dead_man && !ex->cv.wait_for(lock, kHoldAfter, [&] { return ex->done; })) {
+      // Still moving: answer 200 now and stream, so that a client gone mid-move is seen by the failing write. Not
+      // reusable: a browser leaving the page would otherwise read the rest to keep the connection, and stay.
+      res.status = 200;
+      res.set_header("Connection", "close");
+      res.set_chunked_content_provider("application/json", [ex, present](size_t, httplib::DataSink& out) {
+        std::unique_lock l(ex->mutex);
+        if (!ex->cv.wait_for(l, kPresencePoll, [&] { return ex->done; })) {
+          l.unlock();
+          if (out.write(" ", 1)) return true;
+          present->store(false);
+          spdlog::warn("console: the client of a jog went away mid-move");
+          return false;
+        }
+        json body = ex->final_line;
+        body["events"] = ex->events;
+        std::string text = body.dump(-1, ' ', false, json::error_handler_t::replace);
+        l.unlock();
+        out.write(text.data(), text.size());
+        out.done();
+        return true;
+      });
+      return;
+    }
     auto limit = std::chrono::duration<double>(job_timeout_s + 30);
     if (!ex->cv.wait_for(lock, limit, [&] { return ex->done; })) {
       send_json(res, 504, error_json("timeout", "no final reply within " + std::to_string(int(job_timeout_s + 30)) +
@@ -218,7 +288,7 @@ struct Console::Impl {
       if (!body.is_object()) return send_json(res, 400, error_json("bad_request", "request body must be a JSON object"));
       if (body.contains("cmd")) return send_json(res, 400, error_json("bad_field", "\"cmd\" comes from the URL, not the body"));
       body["cmd"] = cmd;
-      run_request(body.dump(), res);
+      run_request(body.dump(), res, req.get_header_value("X-RBX1-Page"));
     });
 
     http.Get("/api/info", [this](const httplib::Request& req, httplib::Response& res) {
@@ -288,9 +358,11 @@ struct Console::Impl {
       if (!last.empty() && last.size() < 20 && last.find_first_not_of("0123456789") == std::string::npos)
         after = std::stoull(last);
       auto cursor = std::make_shared<uint64_t>(after);
+      std::string page = req.get_param_value("page");
+      auto page_stream = valid_page_id(page) ? std::make_shared<PageStream>(*this, page) : nullptr;
       res.set_header("Cache-Control", "no-store");
-      res.set_chunked_content_provider("text/event-stream", [this, slot, cursor](size_t, httplib::DataSink& sink) {
-        auto events = hub.wait(*cursor, kStreamPoll);
+      res.set_chunked_content_provider("text/event-stream", [this, slot, cursor, page_stream](size_t, httplib::DataSink& sink) {
+        auto events = hub.wait(*cursor, page_stream ? kEventKeepAlive : kStreamPoll);
         if (hub.closed()) {
           sink.done();
           return true;

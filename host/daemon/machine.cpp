@@ -91,6 +91,12 @@ int Machine::start(std::string& error) {
   // What the operator taught overrides the file's defaults (scan pose, places, workspace map, background, library).
   state_ = std::make_unique<StateDir>(config_.daemon.state_dir);
   if (!state_->apply(config_, error)) return -EINVAL;
+  {
+    calib::WorkspaceCalibration w;
+    bool saved = config_.arm.camera.pixel_map && calib::load_workspace(state_->path(kWorkspaceFile), w, error);
+    std::lock_guard lock(mutex_);
+    calibration_ = calibration_summary(saved ? &w : nullptr);
+  }
   auto source = camera::open_source(config_.camera, error);
   if (!source) return -ENOENT;
   camera_ = std::make_unique<camera::LockedSource>(std::move(source));
@@ -244,6 +250,7 @@ nlohmann::json Machine::status_reply() {
     j["joints_deg"] = a;
   }
   j["camera"] = camera_ ? camera_->describe() : "";
+  j["calibration"] = calibration_;
   if (!last_estop_.empty()) j["last_estop"] = last_estop_;
   return j;
 }

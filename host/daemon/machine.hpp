@@ -84,6 +84,8 @@ class Machine {
   void job_background(Reply& reply, int frames);
   void job_teach(Reply& reply, const Request& request);
   void job_calibrate_workspace(Reply& reply, const Request& request);
+  // The camera-to-arm map in force for status: {"in_force": "mount"} or the saved workspace calibration's figures.
+  nlohmann::json calibration_summary(const calib::WorkspaceCalibration* w) const;
   bool current_pose(Reply& reply, arm::Steps& steps, arm::Joints& deg);  // a fresh STATUS; false after reply.error
   bool reload_vision(Reply& reply);  // after the background or the library changed
   const char* busy_locked() const;  // the running or queued job's command, or null (mutex_ held)
@@ -97,6 +99,7 @@ class Machine {
   std::unique_ptr<vision::Vision> vision_;
   std::unique_ptr<StateDir> state_;                    // [daemon] state_dir
   std::unique_ptr<WorkspaceSession> workspace_;        // the calibration in progress (worker thread only)
+  nlohmann::json calibration_;                         // calibration_summary of the map in force (under mutex_)
   std::unique_ptr<gpio::EdgeSource> estop_source_;
   std::unique_ptr<gpio::InputWatcher> estop_input_;
   std::unique_ptr<gpio::EdgeSource> start_source_;

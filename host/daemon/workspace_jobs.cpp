@@ -199,11 +199,23 @@ void Machine::job_calibrate_workspace(Reply& reply, const Request& r) {
   config_.arm.camera.pixel_map = m;
   config_.arm.heights.table_z_mm = table_z;
   workspace_.reset();
+  {
+    std::lock_guard lock(mutex_);
+    calibration_ = calibration_summary(&w);
+  }
   spdlog::info("workspace calibration saved: {} over {} markers, RMS {:.3f} mm, worst leave-one-out {:.3f} mm, table "
                "at z {:.2f} mm", fit.model, points.size(), fit.rms_mm, fit.max_loo_mm, table_z);
   result["saved"] = state_->path(kWorkspaceFile);
   result["in_force"] = "workspace";
   reply.result(result);
+}
+
+nlohmann::json Machine::calibration_summary(const calib::WorkspaceCalibration* w) const {
+  if (!w) return {{"in_force", "mount"}};
+  return {{"in_force", "workspace"}, {"model", w->fit.model}, {"markers", w->points.size()},
+          {"rms_mm", round3(w->fit.rms_mm)}, {"max_loo_mm", round3(w->fit.max_loo_mm)},
+          {"table_z_mm", w->table_z_mm ? nlohmann::json(round3(*w->table_z_mm)) : nlohmann::json(nullptr)},
+          {"file", state_->path(kWorkspaceFile)}};
 }
 
 }  // namespace rbx1::daemon

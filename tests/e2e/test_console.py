@@ -1,9 +1,13 @@
 """test_console.py - the web console in headless Chromium (Selenium, Debian's chromium-driver) against rbx1d and
 rbx1-simfw: the page shows the annotated scan and the objects, a pick from the page runs to the end with its
-events shown, the e-stop button latches the firmware's e-stop while the page's pick request still waits, and bad
-requests (token, malformed) move nothing. One browser and one daemon for the whole file; screenshots go to
-build/e2e/console/."""
+events shown, the e-stop button latches the firmware's e-stop while the page's pick request still waits, jog from
+the page moves the arm by the amount asked (the firmware's step counts), every operator panel's request is one the
+daemon takes, a jog stops when the page (or an HTTP client) goes away mid-move, the status shows the calibration in
+force, and bad requests (token, malformed) move nothing. One browser and one daemon for most of the file (a second
+daemon, slow and calibrated, for the dead-man); screenshots go to build/e2e/console/."""
+import http.client as httpclient
 import json
+import math
 import os
 import subprocess
 import time
@@ -46,13 +50,19 @@ def browser(rig):
         opts.add_argument(a)
     drv = webdriver.Chrome(service=Service(e2e.need("/usr/bin/chromedriver")), options=opts)
     drv.set_page_load_timeout(20)
-    drv.get(rig[2])
-    token = drv.find_element(By.ID, "token")
-    token.send_keys(TOKEN)
-    drv.execute_script("arguments[0].dispatchEvent(new Event('change'))", token)
+    open_page(drv, rig[2])
     SHOTS.mkdir(parents=True, exist_ok=True)
     yield drv
     drv.quit()
+
+
+def open_page(drv, url):
+    """The console's page with the token typed in (the page keeps it per origin)."""
+    drv.get(url)
+    token = drv.find_element(By.ID, "token")
+    token.clear()
+    token.send_keys(TOKEN)
+    drv.execute_script("arguments[0].dispatchEvent(new Event('change'))", token)
 
 
 def wait(drv, what, timeout=60, msg=""):
@@ -185,6 +195,75 @@ def test_estop_button_while_a_pick_waits(rig, browser):
     wait(browser, lambda b: b.find_element(By.ID, "state").text == "ready", 20)
 
 
+def position(d):
+    return status(d)["firmware"]["position"]
+
+
+def wait_idle(d, timeout=20):
+    deadline = time.monotonic() + timeout
+    while True:
+        st = status(d)
+        if st["job"] is None and st["firmware"]["state"] == "IDLE":
+            return st
+        assert time.monotonic() < deadline, st
+        time.sleep(0.05)
+
+
+def click_and_wait(drv, element_id, cmd, timeout=60):
+    """Clicks a button whose request is cmd; returns the request's final log line (event, text) once it came."""
+    return click_css_and_wait(drv, "#" + element_id, cmd, timeout)
+
+
+def click_css_and_wait(drv, selector, cmd, timeout=60):
+    base = len(log_entries(drv))
+    button = drv.find_element(By.CSS_SELECTOR, selector)
+    button.click()
+    wait(drv, lambda b: any(c == cmd and e in ("result", "error") for e, c, _ in log_entries(b)[base:]), timeout,
+         f"{selector}: no reply to {cmd}")
+    wait(drv, lambda b: not button.get_attribute("disabled"), 10)
+    return next((e, t) for e, c, t in log_entries(drv)[base:] if c == cmd and e in ("result", "error"))
+
+
+def set_field(drv, element_id, value):
+    el = drv.find_element(By.ID, element_id)
+    drv.execute_script("arguments[0].value = arguments[1]", el, str(value))
+
+
+J1_STEPS_PER_DEG = 200 * 16 * 10.67 / 360  # data/rbx1.toml [arm.joints]: 16 microsteps, reduction 10.67
+
+
+def test_jog_from_the_page_moves_the_arm_by_the_amount_asked(rig, browser):
+    sim, d, _ = rig
+    arm = e2e.load_default_config()["arm"]
+    wait(browser, lambda b: b.find_element(By.ID, "state").text == "ready", 20)
+    assert browser.find_element(By.ID, "jog-panel").is_displayed(), "the jog panel is hidden"
+    # Joint 1 by 5 degrees, then back: the firmware's step counts moved by exactly that.
+    before = position(d)
+    set_field(browser, "jog-joint", 1)
+    set_field(browser, "jog-deg", 5)
+    e, t = click_and_wait(browser, "jog-plus", "jog")
+    assert e == "result", t
+    after = position(d)
+    want = round(5 * J1_STEPS_PER_DEG)
+    assert abs((after[0] - before[0]) - want) <= 1 and after[1:] == before[1:], (before, after, want)
+    e, t = click_and_wait(browser, "jog-minus", "jog")
+    assert e == "result" and position(d) == before, (t, position(d), before)
+    # The tool point by 10 mm up and 10 mm along -y from the scan pose (pointing down): FK of the step counts.
+    assert "result" in d.request({"cmd": "scan"})[1]
+    p0, yaw0, _ = e2e.tool_pose(arm, position(d))
+    set_field(browser, "jog-mm", 10)
+    for axis, sign, delta in ((2, 1, (0, 0, 10)), (1, -1, (0, -10, 0))):
+        e, t = click_css_and_wait(browser, f"button.jog-mm[data-axis='{axis}'][data-sign='{sign}']", "jog")
+        assert e == "result", t
+        p1, yaw1, tilt = e2e.tool_pose(arm, position(d))
+        moved = [b - a for a, b in zip(p0, p1)]
+        assert all(abs(m - w) < 0.1 for m, w in zip(moved, delta)), (moved, delta)
+        assert abs(yaw1 - yaw0) < 0.1 and tilt < 0.1, (yaw0, yaw1, tilt)
+        p0 = p1
+    browser.save_screenshot(str(SHOTS / "4-jog.png"))
+    assert "result" in d.request({"cmd": "home"})[1]
+
+
 def test_bad_requests_move_nothing(rig):
     sim, d, url = rig
     api = url.rstrip("/") + "/api/"
@@ -229,3 +308,148 @@ def test_console_config_errors(tmp_path):
     r = subprocess.run([rbx1d, "--config", e2e.DATA / "rbx1.toml", "--console", "8080", "--check-config"],
                        capture_output=True, text=True, timeout=30)
     assert r.returncode == 2 and '--console: must be "HOST:PORT"' in r.stderr, r.stderr
+
+
+# A saved workspace calibration for the second daemon: the bundled [arm.camera] mapping (pixel (0, 0) at (370, 100)
+# mm, 40 px/cm, image x along base -y) as a homography over six markers, with its figures.
+WORKSPACE = {"format": "rbx1-workspace", "version": 1, "model": "homography",
+             "homography": [[0.0, -0.25, 370.0], [-0.25, 0.0, 100.0], [0.0, 0.0, 1.0]], "image_size": [640, 480],
+             "rms_mm": 0.042, "max_loo_mm": 0.187, "table_z_mm": 0.61,
+             "points": [{"id": i, "px": [u, v], "mm": [370 - v / 4, 100 - u / 4]}
+                        for i, (u, v) in enumerate([(100, 100), (320, 100), (540, 100), (100, 380), (320, 380),
+                                                    (540, 380)])]}
+
+
+@pytest.fixture
+def slow_rig(tmp_path):
+    """A second daemon: a slow arm (10 degrees of J1 take 4 s) and a saved workspace calibration in its state."""
+    sim = e2e.Simfw(tmp_path, "--eeprom", tmp_path / "eeprom.bin")
+    e2e.configure_fast_firmware(sim.port)
+    cfg = fast_config()
+    cfg["arm"]["speeds"]["joint_speed_deg_s"] = 2.5
+    cfg["console"] = {"bind": "127.0.0.1:0", "token": TOKEN}
+    (tmp_path / "state").mkdir()
+    (tmp_path / "state" / "workspace.json").write_text(json.dumps(WORKSPACE))
+    d = e2e.Daemon(tmp_path, cfg, sim.port)
+    yield sim, d, d.console_url()
+    d.stop()
+    sim.stop()
+
+
+def status_row(drv, key):
+    return drv.execute_script("""
+        const row = [...document.querySelectorAll('#arm-state tr')].find(tr => tr.cells[0].textContent === arguments[0]);
+        return row ? row.cells[1].textContent : null;""", key)
+
+
+def test_status_shows_the_calibration_and_a_jog_stops_when_the_page_goes_away(rig, slow_rig, browser):
+    # The first daemon: the config's mount is in force.
+    assert status(rig[1])["calibration"] == {"in_force": "mount"}
+    wait(browser, lambda b: (status_row(b, "calibration") or "").startswith("mount"), 10,
+         "the page does not show the mount mapping in force")
+    sim, d, url = slow_rig
+    cal = status(d)["calibration"]
+    assert cal["in_force"] == "workspace" and cal["markers"] == 6 and cal["rms_mm"] == 0.042, cal
+    assert cal["table_z_mm"] == 0.61 and cal["file"].endswith("workspace.json"), cal
+    first = browser.current_window_handle
+    browser.switch_to.new_window("tab")
+    try:
+        slow_page_and_client(browser, d, url)
+    finally:
+        if browser.current_window_handle != first:
+            browser.close()
+        browser.switch_to.window(first)
+    wait(browser, lambda b: b.find_element(By.ID, "state").text == "ready", 20)
+
+
+def slow_page_and_client(browser, d, url):
+    open_page(browser, url)
+    wait(browser, lambda b: b.find_element(By.ID, "state").text == "ready", 20)
+    shown = wait(browser, lambda b: status_row(b, "calibration"), 10)
+    assert shown == ("workspace: homography over 6 markers, RMS 0.042 mm, worst leave-one-out 0.187 mm, "
+                     "table at z 0.61 mm"), shown
+    browser.save_screenshot(str(SHOTS / "5-calibration-in-force.png"))
+    # A 10 degree jog of J1 (4 s) from the page; the tab is closed as soon as the arm moves. Chromium may go on
+    # reading the jog's own response; the page's event stream closes with the tab.
+    start = position(d)
+    set_field(browser, "jog-joint", 1)
+    set_field(browser, "jog-deg", 10)
+    base = len(log_entries(browser))
+    browser.find_element(By.ID, "jog-plus").click()
+    wait(browser, lambda b: any(c == "jog" and e == "step" for e, c, _ in log_entries(b)[base:]), 20,
+         "the jog never started")
+    time.sleep(0.3)
+    browser.close()  # the operator closes the tab mid-move
+    browser.switch_to.window(browser.window_handles[0])
+    st = wait_idle(d)
+    moved = st["firmware"]["position"][0] - start[0]
+    full = round(10 * J1_STEPS_PER_DEG)
+    assert 0 < moved < full * 0.6, (moved, full)  # stopped early, not run to the end
+    assert st["ready"], st
+    log = d.log_path.read_text()
+    assert "console: the page of a jog went away mid-move" in log and "STOP sent" in log, log[-2000:]
+    # The same from a bare HTTP client that hangs up mid-move.
+    start = position(d)
+    host, port = url.split("//")[1].strip("/").split(":")
+    c = httpclient.HTTPConnection(host, int(port), timeout=10)
+    c.connect()
+    sock = c.sock  # the response takes it over (Connection: close)
+    c.request("POST", "/api/jog", body=json.dumps({"joint": 1, "deg": -10}),
+              headers={"Content-Type": "application/json", "Authorization": "Bearer " + TOKEN})
+    r = c.getresponse()
+    assert r.status == 200, r.status  # streaming: the move outlasted the first 0.3 s
+    assert r.read(1) == b" "
+    time.sleep(0.3)
+    sock.shutdown(2)
+    sock.close()
+    st = wait_idle(d)
+    moved = start[0] - st["firmware"]["position"][0]
+    assert 0 < moved < full * 0.6, (moved, full)
+    assert "console: the client of a jog went away mid-move" in d.log_path.read_text()
+    assert d.request({"cmd": "status"})[1]["result"]["ready"]
+    # A client that stays gets the whole reply after the spaces, as JSON.
+    start = position(d)
+    code, body = http(url.rstrip("/") + "/api/jog", json.dumps({"joint": 1, "deg": 1}), token=TOKEN)
+    assert code == 200 and body["result"]["moved_steps"][0] == position(d)[0] - start[0] != 0, body
+
+
+REQUEST_ERRORS = {"bad_json", "bad_request", "unknown_command", "missing_field", "bad_field"}
+
+
+def test_every_operator_panel_sends_a_request_the_daemon_takes(rig, browser):
+    """Each button of the jog, teach and calibration panels, clicked: the daemon parsed its request (no request-shape
+    error) and answered with that command's fields (host/daemon/README.md "Operator commands")."""
+    sim, d, _ = rig
+    for panel in ("jog-panel", "teach-panel", "calib-panel"):
+        assert browser.find_element(By.ID, panel).is_displayed(), panel
+    assert "result" in d.request({"cmd": "scan"})[1]
+
+    def reply(element, cmd):
+        e, t = click_and_wait(browser, element, cmd)
+        kind, _, rest = t.partition("] ")[2].partition(" ")
+        if e == "error":
+            code = rest.split(":")[0]
+            assert code not in REQUEST_ERRORS, (element, t)
+            return e, code
+        return e, json.loads(rest)
+
+    assert reply("pose-save", "pose_save") [1]["pose"] == "scan"
+    set_field(browser, "place-name", "console_shelf")
+    e, r = reply("place-save", "place_save")
+    assert r["place"] == "console_shelf" and "z_mm" in r, r
+    browser.execute_script("arguments[0].click()", browser.find_elements(By.CSS_SELECTOR, "#objects tbody tr")[0])
+    set_field(browser, "teach-name", "console_taught")
+    e, r = reply("teach", "teach")
+    assert r["taught"] == "console_taught", r
+    # The bundled scene has no markers: start finds too few, and no session is left for the other steps.
+    assert reply("calib-start", "calibrate_workspace") == ("error", "too_few_markers")
+    set_field(browser, "calib-marker", 3)
+    for step in ("calib-record", "calib-fit", "calib-save"):
+        assert reply(step, "calibrate_workspace") == ("error", "no_calibration"), step
+    e, r = reply("calib-cancel", "calibrate_workspace")
+    assert r == {"cancelled": False, "in_force": "mount"}, r
+    assert "no_calibration" in browser.find_element(By.ID, "calib-out").text or "mount" in \
+        browser.find_element(By.ID, "calib-out").text
+    e, r = reply("background", "background")  # last: the scene becomes the background
+    assert r["frames"] >= 1 and r["background"].endswith("background.png"), r
+    browser.save_screenshot(str(SHOTS / "6-operator-panels.png"))

@@ -2,12 +2,14 @@
 'use strict';
 
 const $ = (id) => document.getElementById(id);
+// This page's name for the daemon: its jogs last while this page's event stream is open (the dead-man rule).
+const pageId = Array.from(crypto.getRandomValues(new Uint8Array(16)), (b) => b.toString(16).padStart(2, '0')).join('');
 const state = { token: localStorage.getItem('rbx1.token') || '', detections: null, selected: null,
                 events: null, statusBusy: false, lastScan: -1 };
 
 // ---- requests -----------------------------------------------------------------------------------------------
 function headers(json) {
-  const h = json ? { 'Content-Type': 'application/json' } : {};
+  const h = json ? { 'Content-Type': 'application/json', 'X-RBX1-Page': pageId } : {};
   if (state.token) h.Authorization = 'Bearer ' + state.token;
   return h;
 }
@@ -19,11 +21,15 @@ function say(text, kind) {
   m.textContent = text;
   m.className = kind || '';
 }
+// Requests that end when the page goes away (a jog's dead-man rule: its connection closes, the daemon stops it).
+const leaving = new AbortController();
+window.addEventListener('pagehide', () => leaving.abort());
 // POST /api/CMD with body; resolves to the daemon's final line ({result} or {error}) with its events.
 async function call(cmd, body) {
   let reply;
   try {
-    const r = await fetch('/api/' + cmd, { method: 'POST', headers: headers(true), body: JSON.stringify(body || {}) });
+    const r = await fetch('/api/' + cmd, { method: 'POST', headers: headers(true), body: JSON.stringify(body || {}),
+                                          signal: cmd === 'jog' ? leaving.signal : undefined });
     reply = await r.json();
   } catch (e) {
     reply = { error: { code: 'unreachable', message: 'rbx1d did not answer: ' + e } };
@@ -72,7 +78,7 @@ function showStatus(s) {
   const rows = [['firmware', fw.state], ['faults', fw.faults], ['homed', fw.homed], ['joints (°)', s.joints_deg],
                 ['position (steps)', fw.position], ['gripper (µs)', fw.gripper_us],
                 ['link', s.link && (s.link.connected ? 'up ' : 'down ') + (s.link.port || '') + (s.link.error ? ' – ' + s.link.error : '')],
-                ['last e-stop', s.last_estop], ['camera', s.camera]];
+                ['last e-stop', s.last_estop], ['camera', s.camera], ['calibration', calibrationText(s.calibration)]];
   const body = $('arm-state').tBodies[0];
   body.replaceChildren(...rows.map(([k, v]) => {
     const tr = document.createElement('tr');
@@ -82,6 +88,13 @@ function showStatus(s) {
     if (k === 'faults' && v && v.length) tr.cells[1].className = 'bad';
     return tr;
   }));
+}
+// The camera-to-arm map in force: the configured mount, or the workspace calibration with its own error.
+function calibrationText(c) {
+  if (!c) return null;
+  if (c.in_force !== 'workspace') return 'mount ([arm.camera] of the config): no workspace calibration';
+  return 'workspace: ' + c.model + ' over ' + c.markers + ' markers, RMS ' + num(c.rms_mm, 3) + ' mm, worst leave-one-out ' +
+         num(c.max_loo_mm, 3) + ' mm' + (c.table_z_mm === null ? '' : ', table at z ' + num(c.table_z_mm, 2) + ' mm');
 }
 async function pollStatus() {
   if (state.statusBusy) return;
@@ -190,7 +203,7 @@ function logEvent(e) {
 }
 function connectEvents() {
   if (state.events) state.events.close();
-  state.events = new EventSource(withToken('/api/events'));
+  state.events = new EventSource(withToken('/api/events?page=' + pageId));
   state.events.onmessage = (m) => {
     const e = JSON.parse(m.data);
     logEvent(e);
