@@ -47,7 +47,8 @@ def junction_speed(a, b, c, vmax=VMAX, acc=ACCEL):
 def run(trace_path, targets, duration_ms=0, vmax=VMAX, acc=ACCEL):
     """Streams targets (from position 0) to the real ELF in real time (under --fast the simulation outruns a host
     that the machine's load holds up, and the queue runs empty); returns (STATUS after, avrsim JSON, MOVEs refused
-    as QUEUE_FULL, the MOVEs after the first 16 that found the queue empty: the host fell behind)."""
+    as QUEUE_FULL, the moves (counted from 1) after the third accepted with at most three in the queue: the host
+    fell behind)."""
     try:  # the host must keep ahead of the simulated arm: ask for the share rbx1-avrsim asks for (root only)
         os.setpriority(os.PRIO_PROCESS, 0, -10)
     except OSError:
@@ -69,7 +70,9 @@ def run(trace_path, targets, duration_ms=0, vmax=VMAX, acc=ACCEL):
                 r = b.link.request(MsgType.MOVE, target=targets[k], duration_ms=duration_ms)
                 if r["status"] == Status.OK:
                     k += 1
-                    if k > b.queue and r["queue_free"] >= b.queue - 1:
+                    # Three moves or fewer queued with it: less than the look-ahead needs to keep the speed (a
+                    # ramp to rest spans two moves of the default circle), so the arm slowed or stopped, as it must.
+                    if k > 3 and r["queue_free"] >= b.queue - 3:
                         starved.append(k)
                 elif r["status"] == Status.QUEUE_FULL:
                     full += 1
@@ -160,9 +163,10 @@ def arrivals(steps, targets):
 
 
 def figures(trace_path, targets, starved=(), vmax=VMAX, acc=ACCEL):
-    """Everything the test checks, from the trace. starved: indices of moves that found the queue empty (the host
-    fell behind): the arm had to stop before them, so the gaps from three moves before to two after are left out
-    of the mid-stream figure (a ramp to rest and back spans two moves of the default circle) and counted apart."""
+    """Everything the test checks, from the trace. starved: moves (counted from 1) accepted with at most three in the
+    queue (the host fell behind): the arm had to slow down or stop around them, so the gaps from three moves before
+    to two after are left out of the mid-stream figure (a ramp to rest and back spans two moves of the default
+    circle) and counted apart."""
     ticks = []
     steps, width, setup = analyse(trace_path, ticks)
     all_t = sorted(c for s in steps for c, _ in s)
@@ -171,8 +175,10 @@ def figures(trace_path, targets, starved=(), vmax=VMAX, acc=ACCEL):
     arr = arrivals(steps, targets)
     skip = [(arr[max(k - 4, 0)], arr[min(k + 2, len(arr) - 1)]) for k in starved if k - 4 >= 0 and k < len(arr)]
     gaps = [(b - a) for a, b in zip(all_t, all_t[1:])]
-    mid = [(b - a) for a, b in zip(all_t, all_t[1:])
+    mid = [(b - a, a) for a, b in zip(all_t, all_t[1:])
            if a >= mid0 and b <= mid1 and not any(s0 <= a and b <= s1 for s0, s1 in skip)]
+    worst = max(mid)
+    worst_at = sum(1 for c in arr if c <= worst[1])  # moves completed when the longest mid-stream gap began
     prev = [0] * 6
     vj = math.inf
     for k in range(len(targets) - 1):
@@ -184,7 +190,7 @@ def figures(trace_path, targets, starved=(), vmax=VMAX, acc=ACCEL):
     return {"net_steps": [sum(d for _, d in s) for s in steps], "pulses": sum(len(s) for s in steps),
             "seconds": (all_t[-1] - all_t[0]) / HZ, "junction_speed_min": vj, "stop_rate": v0,
             "targets_reached_in_order": len(arr), "stops_left_out": len(skip),
-            "max_gap_mid_s": max(mid) / HZ, "max_gap_s": max(gaps) / HZ,
+            "max_gap_mid_s": worst[0] / HZ, "max_gap_mid_after_move": worst_at, "max_gap_s": max(gaps) / HZ,
             "max_speed": speed, "max_accel": accel, "min_pulse_width_cycles": width,
             "min_dir_setup_cycles": setup, "profile_tick_max_cycles": max(ticks, default=None),
             "profile_tick_mean_cycles": sum(ticks) / len(ticks) if ticks else None,

