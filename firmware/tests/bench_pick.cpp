@@ -2,7 +2,8 @@
 // clock (exact, the same run): "before" is the pick as one joint move per phase with the arm stopping between
 // moves (a zero-length MOVE between two moves is a stop: the look-ahead never runs on across it); "after" is the
 // pick with straight lines (host/arm/line.cpp) streamed to the look-ahead. Same firmware limits (defaults), same
-// joint speed (arm defaults), same object. Prints one JSON object (tools/bench/motion reads it).
+// joint speed (arm defaults), same object. Prints one JSON object (tools/bench/motion reads it), with each phase's
+// time in both (from the previous entry's completion to the phase's last entry's completion).
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -70,11 +71,12 @@ struct Entry {
   bool gripper;
   arm::Steps target;
   uint16_t ms, pulse;
+  std::string phase;  // empty for the zero-length MOVEs that stop the arm between moves
 };
 
 // Runs the entries from `start` on a freshly powered board; returns the seconds from the first MOVE sent to the
-// last entry's completion, or -1.
-double run(const std::vector<Entry>& entries, const arm::Steps& start) {
+// last entry's completion, or -1. `phases` gets "name": seconds for each phase, in order.
+double run(const std::vector<Entry>& entries, const arm::Steps& start, std::string& phases) {
   sim::board() = sim::Board{};
   sim::erase_eeprom();
   sim::power_on();
@@ -101,6 +103,19 @@ double run(const std::vector<Entry>& entries, const arm::Steps& start) {
   while (h.done.size() < entries.size() && sim::board().now - t0 < 600 * sim::kTicksPerSecond)
     h.request(RBX1_MSG_STATUS, nullptr, 0);
   if (h.done.size() != entries.size()) return -1;
+  uint64_t begin = t0;
+  for (size_t k = 0; k < entries.size(); k++) {
+    if (entries[k].phase.empty()) {
+      begin = h.done[k];
+      continue;
+    }
+    if (k + 1 < entries.size() && entries[k + 1].phase == entries[k].phase) continue;  // not the phase's last
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "%s\"%s\": %.3f", phases.empty() ? "" : ", ", entries[k].phase.c_str(),
+                  (double)(h.done[k] - begin) / sim::kTicksPerSecond);
+    phases += buf;
+    begin = h.done[k];
+  }
   return (double)(h.done.back() - t0) / sim::kTicksPerSecond;
 }
 
@@ -123,14 +138,15 @@ int main() {
     for (const auto& x : w) {
       bool g = x.kind == arm::WaypointKind::Gripper;
       if (stop_between && !g && !out.empty() && !out.back().gripper)
-        out.push_back(Entry{false, out.back().target, 0, 0});  // a zero-length MOVE: a stop
-      out.push_back(Entry{g, x.steps, g ? x.dwell_ms : x.duration_ms, x.pulse_us});
+        out.push_back(Entry{false, out.back().target, 0, 0, ""});  // a zero-length MOVE: a stop
+      out.push_back(Entry{g, x.steps, g ? x.dwell_ms : x.duration_ms, x.pulse_us, x.name});
     }
     return out;
   };
-  const double before = run(entries(joint_plan, true), start);
-  const double after = run(entries(line_plan, false), start);
-  const double lines_stopping = run(entries(line_plan, true), start);
+  std::string phases_before, phases_after, phases_stopping;
+  const double before = run(entries(joint_plan, true), start, phases_before);
+  const double after = run(entries(line_plan, false), start, phases_after);
+  const double lines_stopping = run(entries(line_plan, true), start, phases_stopping);
   if (before < 0 || after < 0 || lines_stopping < 0) {
     std::fprintf(stderr, "bench_pick: a run did not complete\n");
     return 1;
@@ -139,7 +155,9 @@ int main() {
   for (const auto& x : joint_plan) moves_before += x.kind == arm::WaypointKind::Move;
   for (const auto& x : line_plan) moves_after += x.kind == arm::WaypointKind::Move;
   std::printf("{\"pick_before_s\": %.3f, \"pick_after_s\": %.3f, \"pick_lines_stopping_s\": %.3f, "
-              "\"after_over_before\": %.4f, \"moves_before\": %zu, \"moves_after\": %zu, \"gripper_dwell_s\": %.3f}\n",
-              before, after, lines_stopping, after / before, moves_before, moves_after, 3 * c.gripper.dwell_ms / 1000.0);
+              "\"after_over_before\": %.4f, \"moves_before\": %zu, \"moves_after\": %zu, \"gripper_dwell_s\": %.3f, "
+              "\"phases_before_s\": {%s}, \"phases_after_s\": {%s}}\n",
+              before, after, lines_stopping, after / before, moves_before, moves_after, 3 * c.gripper.dwell_ms / 1000.0,
+              phases_before.c_str(), phases_after.c_str());
   return 0;
 }
