@@ -33,6 +33,7 @@ sanitize: deps
 bench: host firmware
 	@tools/bench/firmware
 	@tools/bench/motion
+	@tools/bench/link-window
 	@tools/bench/perception-speed
 	@tools/bench/perception-accuracy
 	@tools/bench/perception-corpus

@@ -184,6 +184,8 @@ def gen_h(spec, msgs):
         else:
             L.append(f"#define RBX1_{m.name}_REQ_LEN {payload_len(m.request)}")
             L.append(f"#define RBX1_{m.name}_RESP_LEN {payload_len(m.response)}")
+    longest = max(payload_len(m.response) for m in msgs if not m.firmware_only)
+    L.append(f"#define RBX1_MAX_RESP_LEN {longest} /* the longest response payload */")
     L.append("")
     L.append("/* Payload structs (host byte order; pack/unpack convert to and from the little-endian wire). */")
     for m in msgs:

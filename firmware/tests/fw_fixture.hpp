@@ -83,7 +83,12 @@ class Fw : public ::testing::Test {
     return frames_.empty() ? Reply{} : frames_.front();
   }
 
-  Reply request(uint8_t type, const uint8_t* payload, uint8_t len) { return exchange(encode(seq_++, type, payload, len)); }
+  // The next SEQ in order; ESTOP takes no place in the order (PROTOCOL.md "Window"), so it does not consume one.
+  Reply request(uint8_t type, const uint8_t* payload, uint8_t len) {
+    return exchange(encode(type == RBX1_MSG_ESTOP ? seq_ : seq_++, type, payload, len));
+  }
+  // The next in-order SEQ, consumed (for tests that build their own frames).
+  uint8_t take_seq() { return seq_++; }
 
   // Typed helpers: return the response's status (and fill the struct).
   rbx1_status_resp status() {

@@ -1,8 +1,9 @@
-// test_link.cpp - the link: duplicates answered from the cache and not re-executed, garbage and corrupt frames
-// NAKed (or ignored) with nothing executed, resynchronisation, HELLO.
+// test_link.cpp - the link: the window (duplicates answered from memory and not re-executed, gaps and old frames
+// refused), garbage and corrupt frames NAKed (or ignored) with nothing executed, resynchronisation, HELLO.
 #include <vector>
 
 #include "fw_fixture.hpp"
+#include "rbx1_window.h"
 
 namespace rbx1::fwtest {
 namespace {
@@ -27,6 +28,7 @@ TEST_F(Fw, HelloReportsVersionsSizesAndCapabilities) {
   EXPECT_EQ(h.joints, 6);
   EXPECT_EQ(h.queue_size, 16);
   EXPECT_EQ(h.last_seq, 0xFF);  // nothing executed since power-up
+  EXPECT_EQ(h.window, RBX1_WINDOW);
   EXPECT_EQ(h.capabilities & RBX1_CAP_SIMULATED, RBX1_CAP_SIMULATED);
   EXPECT_EQ(simple(RBX1_MSG_HEARTBEAT), RBX1_OK);  // seq 1
   r = request(RBX1_MSG_HELLO, p, 1);                // seq 2
@@ -42,24 +44,81 @@ TEST_F(Fw, HelloReportsVersionsSizesAndCapabilities) {
 TEST_F(Fw, DuplicateMoveIsAnsweredAgainButExecutedOnce) {
   ready();
   std::vector<uint8_t> p = move_payload({500, 0, 0, 0, 0, 0});
-  std::vector<uint8_t> f = encode(42, RBX1_MSG_MOVE, p.data(), (uint8_t)p.size());
+  uint8_t seq = take_seq();
+  std::vector<uint8_t> f = encode(seq, RBX1_MSG_MOVE, p.data(), (uint8_t)p.size());
   Reply a = exchange(f);
   Reply b = exchange(f);
   ASSERT_TRUE(a.got);
   ASSERT_TRUE(b.got);
-  EXPECT_EQ(a.seq, 42);
-  EXPECT_EQ(b.seq, 42);
+  EXPECT_EQ(a.seq, seq);
+  EXPECT_EQ(b.seq, seq);
   EXPECT_EQ(a.payload, b.payload);
   EXPECT_EQ(status().queue_free, 15);
   run_until_idle();
   EXPECT_EQ(status().moves_done, 1);
-  // Same SEQ, other content: a new request.
+  // Same SEQ, other content: a used SEQ, refused (SEQ_OLD) and never executed.
   std::vector<uint8_t> p2 = move_payload({0, 0, 0, 0, 0, 0});
-  Reply c = exchange(encode(42, RBX1_MSG_MOVE, p2.data(), (uint8_t)p2.size()));
-  EXPECT_EQ(c.payload[0], RBX1_OK);
+  Reply c = exchange(encode(seq, RBX1_MSG_MOVE, p2.data(), (uint8_t)p2.size()));
+  ASSERT_TRUE(c.got);
+  EXPECT_EQ(c.type, RBX1_MSG_NAK);
+  EXPECT_EQ(c.payload[0], RBX1_SEQ_OLD);
   run_until_idle();
-  EXPECT_EQ(status().moves_done, 2);
-  EXPECT_EQ(sim::board().pulses[0], 1000u);
+  EXPECT_EQ(status().moves_done, 1);
+  EXPECT_EQ(sim::board().pulses[0], 500u);
+}
+
+TEST_F(Fw, WindowFramesAreRunInOrderOnceAndOldOnesRefused) {
+  ready();
+  // Eight MOVEs back to back (a full window in flight), each one step further on joint 1.
+  std::vector<std::vector<uint8_t>> frames;
+  uint8_t first = take_seq();
+  for (int i = 0; i < RBX1_WINDOW; i++) {
+    std::vector<uint8_t> p = move_payload({(i + 1) * 10, 0, 0, 0, 0, 0});
+    frames.push_back(encode(static_cast<uint8_t>(first + i), RBX1_MSG_MOVE, p.data(), (uint8_t)p.size()));
+    if (i) take_seq();
+  }
+  frames_.clear();
+  for (const auto& f : frames) send_bytes(f.data(), f.size());
+  run_ms(5);
+  ASSERT_EQ(frames_.size(), (size_t)RBX1_WINDOW);
+  for (int i = 0; i < RBX1_WINDOW; i++) {
+    EXPECT_EQ(frames_[i].seq, (uint8_t)(first + i));
+    EXPECT_EQ(frames_[i].payload[0], RBX1_OK);
+  }
+  auto answers = frames_;
+  // Every one of them again (a go-back), oldest first: answered from the window, nothing runs again.
+  frames_.clear();
+  for (const auto& f : frames) send_bytes(f.data(), f.size());
+  run_ms(5);
+  ASSERT_EQ(frames_.size(), (size_t)RBX1_WINDOW);
+  for (int i = 0; i < RBX1_WINDOW; i++) EXPECT_EQ(frames_[i].payload, answers[i].payload);
+  EXPECT_EQ(simple(RBX1_MSG_HEARTBEAT), RBX1_OK);  // a ninth request: the first MOVE leaves the window
+  Reply old = exchange(frames[0]);
+  ASSERT_TRUE(old.got);
+  EXPECT_EQ(old.type, RBX1_MSG_NAK);
+  EXPECT_EQ(old.payload[0], RBX1_SEQ_OLD);
+  Reply kept = exchange(frames[1]);  // still remembered
+  EXPECT_EQ(kept.type, RBX1_RESPONSE(RBX1_MSG_MOVE));
+  EXPECT_EQ(kept.payload, answers[1].payload);
+  run_until_idle();
+  rbx1_status_resp s = status();
+  EXPECT_EQ(s.moves_accepted, RBX1_WINDOW);
+  EXPECT_EQ(s.position[0], RBX1_WINDOW * 10);
+  EXPECT_EQ(sim::board().pulses[0], (uint64_t)RBX1_WINDOW * 10);
+  // A gap: the request after the next one is NAKed SEQ_GAP and not run; in order, both run.
+  std::vector<uint8_t> pa = move_payload({0, 0, 0, 0, 0, 0}), pb = move_payload({5, 0, 0, 0, 0, 0});
+  uint8_t sa = take_seq(), sb = take_seq();
+  Reply gap = exchange(encode(sb, RBX1_MSG_MOVE, pb.data(), (uint8_t)pb.size()));
+  ASSERT_TRUE(gap.got);
+  EXPECT_EQ(gap.type, RBX1_MSG_NAK);
+  EXPECT_EQ(gap.payload[0], RBX1_SEQ_GAP);
+  EXPECT_EQ(exchange(encode(sa, RBX1_MSG_MOVE, pa.data(), (uint8_t)pa.size())).payload[0], RBX1_OK);
+  EXPECT_EQ(exchange(encode(sb, RBX1_MSG_MOVE, pb.data(), (uint8_t)pb.size())).payload[0], RBX1_OK);
+  run_until_idle();
+  s = status();
+  EXPECT_EQ(s.moves_accepted, RBX1_WINDOW + 2);
+  EXPECT_EQ(s.position[0], 5);
+  EXPECT_EQ(sim::board().pulses[0], (uint64_t)RBX1_WINDOW * 10 + RBX1_WINDOW * 10 + 5);
 }
 
 TEST_F(Fw, CorruptFrameIsNakedAndNotExecuted) {
@@ -89,8 +148,9 @@ TEST_F(Fw, GarbageIsIgnoredAndAFrameInsideItIsFound) {
   EXPECT_TRUE(frames_.empty()) << "no SYNC, no header: silence";
   // A bad LEN after SYNC is NAKed (BAD_LENGTH), then the real frame behind it is executed.
   std::vector<uint8_t> p = move_payload({0, 300, 0, 0, 0, 0});
-  std::vector<uint8_t> f = {RBX1_SYNC, 200, 9};
-  std::vector<uint8_t> good = encode(9, RBX1_MSG_MOVE, p.data(), (uint8_t)p.size());
+  uint8_t seq = take_seq();
+  std::vector<uint8_t> f = {RBX1_SYNC, 200, seq};
+  std::vector<uint8_t> good = encode(seq, RBX1_MSG_MOVE, p.data(), (uint8_t)p.size());
   f.insert(f.end(), good.begin(), good.end());
   frames_.clear();
   send_bytes(f.data(), f.size());
@@ -151,8 +211,9 @@ TEST_F(Fw, PartialFrameTimesOut) {
 TEST_F(Fw, FrameSwallowedByAPartialOneIsFoundAfterTheTimeout) {
   ready();
   std::vector<uint8_t> p = move_payload({100, 0, 0, 0, 0, 0});
-  std::vector<uint8_t> cut = encode(3, RBX1_MSG_MOVE, p.data(), (uint8_t)p.size());
-  std::vector<uint8_t> st = encode(4, RBX1_MSG_STATUS, nullptr, 0);
+  std::vector<uint8_t> cut = encode(3, RBX1_MSG_MOVE, p.data(), (uint8_t)p.size());  // never complete: any SEQ
+  uint8_t seq = take_seq();
+  std::vector<uint8_t> st = encode(seq, RBX1_MSG_STATUS, nullptr, 0);
   frames_.clear();
   send_bytes(cut.data(), 10);  // a MOVE cut short, then a whole STATUS read as its continuation
   send_bytes(st.data(), st.size());
@@ -161,7 +222,7 @@ TEST_F(Fw, FrameSwallowedByAPartialOneIsFoundAfterTheTimeout) {
   run_ms(60);  // the inter-byte timeout: the MOVE's SYNC is dropped and the STATUS found by the rescan
   ASSERT_EQ(frames_.size(), 1u);
   EXPECT_EQ(frames_[0].type, RBX1_RESPONSE(RBX1_MSG_STATUS));
-  EXPECT_EQ(frames_[0].seq, 4);
+  EXPECT_EQ(frames_[0].seq, seq);
   EXPECT_EQ(status().moves_accepted, 0);  // the cut MOVE never ran
 }
 

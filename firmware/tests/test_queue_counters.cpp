@@ -38,7 +38,7 @@ TEST_F(Fw, DuplicateMoveIsCountedOnce) {
   rbx1_move_req q{};
   q.target[0] = 500;
   uint8_t p[RBX1_MOVE_REQ_LEN];
-  auto frame = encode(77, RBX1_MSG_MOVE, p, rbx1_move_req_pack(&q, p));
+  auto frame = encode(take_seq(), RBX1_MSG_MOVE, p, rbx1_move_req_pack(&q, p));
   ASSERT_TRUE(exchange(frame).got);
   ASSERT_TRUE(exchange(frame).got);  // a retransmission: the remembered response, nothing queued
   rbx1_status_resp s = status();

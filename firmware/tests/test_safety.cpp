@@ -101,10 +101,10 @@ TEST_F(Fw, EstopMessageStopsPulsesAtOnceAndIsNeverDeduplicated) {
   ASSERT_EQ(move({0, 0, 30000, 0, 0, 0}), RBX1_OK);
   run_ms(300);
   // A STATUS that the ESTOP will follow: its retransmission must still hit the cache (ESTOP is not recorded).
-  std::vector<uint8_t> st = encode(200, RBX1_MSG_STATUS, nullptr, 0);
+  std::vector<uint8_t> st = encode(take_seq(), RBX1_MSG_STATUS, nullptr, 0);
   Reply before = exchange(st);
   ASSERT_TRUE(before.got);
-  std::vector<uint8_t> es = encode(201, RBX1_MSG_ESTOP, nullptr, 0);
+  std::vector<uint8_t> es = encode(201, RBX1_MSG_ESTOP, nullptr, 0);  // any SEQ: outside the window
   frames_.clear();
   send_bytes(es.data(), es.size());
   sim::run_until(sim::board().now + 1);

@@ -1,6 +1,8 @@
-// motion.cpp - the journal of sent vs completed queue entries, flow control on queue_free, and link recovery.
+// motion.cpp - the journal of sent vs completed queue entries, flow control on queue_free (batches streamed with
+// the link's window), and link recovery.
 #include "motion.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <thread>
 
@@ -221,35 +223,79 @@ MotionResult Motion::run(const std::vector<MotionStep>& steps, const MotionHooks
     // Send ahead while the queue has room (never while the firmware stops, homes or holds a fault).
     bool can_send = st.state == RBX1_STATE_IDLE || st.state == RBX1_STATE_MOVING;
     while (can_send && sent < n && queue_free > 0) {
-      const MotionStep& s = steps[sent];
-      uint8_t status = 0;
-      int r;
-      if (s.gripper) {
-        rbx1_gripper_req req{s.pulse_us, s.dwell_ms};
-        rbx1_gripper_resp resp{};
-        r = link_.gripper(req, resp);
-        status = resp.status;
-        queue_free = resp.queue_free;
-      } else {
-        rbx1_move_req req{};
-        for (int j = 0; j < RBX1_JOINTS; ++j) req.target[j] = s.target[j];
-        req.duration_ms = s.duration_ms;
-        rbx1_move_resp resp{};
-        r = link_.move(req, resp);
-        status = resp.status;
-        queue_free = resp.queue_free;
+      // A batch of at most queue_free entries goes out as one stream with the link's window in flight; with no
+      // more entries than the queue has room for, none is refused QUEUE_FULL between accepted ones, so the
+      // firmware (which runs requests in SEQ order) accepts a prefix of any batch whose answers were lost.
+      const size_t first = sent, count = std::min<size_t>(queue_free, n - sent);
+      std::vector<link::StreamRequest> batch(count);
+      for (size_t i = 0; i < count; ++i) {
+        const MotionStep& s = steps[first + i];
+        if (s.gripper) {
+          rbx1_gripper_req req{s.pulse_us, s.dwell_ms};
+          batch[i].type = RBX1_MSG_GRIPPER;
+          batch[i].len = rbx1_gripper_req_pack(&req, batch[i].payload);
+        } else {
+          rbx1_move_req req{};
+          for (int j = 0; j < RBX1_JOINTS; ++j) req.target[j] = s.target[j];
+          req.duration_ms = s.duration_ms;
+          batch[i].type = RBX1_MSG_MOVE;
+          batch[i].len = rbx1_move_req_pack(&req, batch[i].payload);
+        }
+      }
+      int r = link_.stream(batch);
+      size_t k = 0;  // answers taken in order
+      bool refused = false;
+      for (; k < count && batch[k].answered; ++k) {
+        const MotionStep& s = steps[sent];
+        uint8_t status = batch[k].resp_len >= 1 ? batch[k].resp[0] : uint8_t(RBX1_BAD_LENGTH);
+        if (batch[k].resp_len >= 2) queue_free = batch[k].resp[1];
+        if (status == RBX1_QUEUE_FULL || status == RBX1_BUSY || status == RBX1_FAULT_ACTIVE) {
+          // Room or state comes back (poll and retry), or a fault latched since the last STATUS: the loop below
+          // decides (e-stop ends the job, a lost heartbeat is recovered, anything else fails it by name).
+          queue_free = 0;
+          refused = true;
+          break;
+        }
+        if (status != RBX1_OK)
+          return fail("rejected", "firmware refused step " + std::to_string(sent + 1) + " (" + s.name + "): " +
+                                      rbx1_status_name(status));
+        hooks.emit("sent", step_json(s, sent));
+        if (hooks.on_sent) hooks.on_sent(sent);
+        ++accepted;
+        ++sent;
+      }
+      if (refused) {
+        for (size_t j = k + 1; j < count; ++j)
+          if (batch[j].answered && batch[j].resp_len >= 1 && batch[j].resp[0] == RBX1_OK)
+            return fail("rejected", "firmware accepted step " + std::to_string(first + j + 1) + " after refusing step " +
+                                        std::to_string(first + k + 1) + "; the queue's order is lost");
+        break;
       }
       if (r < 0) {
         if (!link_error(r)) return fail("link_error", link_.name() + ": request failed (" + std::to_string(r) + ")");
         if (recover(hooks, err) < 0) return fail(hooks.aborted() ? hooks.abort_reason() : "link_down", err);
         res.recovered++;
-        // At-most-once: the firmware's accepted counter says whether the lost request was queued.
+        // At-most-once: the firmware's accepted counter says how many of the unanswered entries were queued;
+        // it runs them in order, so they are the first ones.
         if (read_status() < 0) return res;
-        bool ran = since(st.moves_accepted, base.moves_accepted) == accepted + 1;
-        spdlog::info("motion: step {} ({}) {} before the link went down", sent + 1, s.name,
-                     ran ? "was accepted" : "was not received");
-        hooks.emit("journal", {{"step", sent + 1}, {"name", s.name}, {"accepted_before_outage", ran}});
-        if (ran) {
+        size_t queued = since(st.moves_accepted, base.moves_accepted);
+        size_t ran = queued >= accepted ? queued - accepted : count + 1;
+        bool fits = ran <= count - k;
+        for (size_t j = k; fits && j < count; ++j)
+          if (batch[j].answered && batch[j].resp_len >= 1 && (batch[j].resp[0] == RBX1_OK) != (j < k + ran))
+            fits = false;
+        if (!fits)
+          return fail("firmware_reset", "the firmware's counters (accepted " + std::to_string(queued) +
+                                            " since the job began) disagree with the " + std::to_string(accepted) +
+                                            " entries this job knows plus " + std::to_string(count - k) +
+                                            " unanswered; refusing to guess the arm's state");
+        for (size_t j = k; j < count && j <= k + ran; ++j) {
+          const MotionStep& s = steps[first + j];
+          bool took = j < k + ran;
+          spdlog::info("motion: step {} ({}) {} before the link went down", first + j + 1, s.name,
+                       took ? "was accepted" : "was not accepted");
+          hooks.emit("journal", {{"step", first + j + 1}, {"name", s.name}, {"accepted_before_outage", took}});
+          if (!took) break;
           hooks.emit("sent", step_json(s, sent));
           if (hooks.on_sent) hooks.on_sent(sent);
           ++accepted;
@@ -258,23 +304,6 @@ MotionResult Motion::run(const std::vector<MotionStep>& steps, const MotionHooks
         if (reconcile() < 0) return res;
         break;  // re-evaluate faults (heartbeat loss) below before sending more
       }
-      if (status == RBX1_QUEUE_FULL || status == RBX1_BUSY) {  // room or state comes back: poll and retry
-        queue_free = 0;
-        break;
-      }
-      if (status == RBX1_FAULT_ACTIVE) {
-        // A fault latched since the last STATUS: the loop below decides (e-stop ends the job, a lost
-        // heartbeat is recovered, anything else fails it with the fault's name).
-        queue_free = 0;
-        break;
-      }
-      if (status != RBX1_OK)
-        return fail("rejected", "firmware refused step " + std::to_string(sent + 1) + " (" + s.name + "): " +
-                                    rbx1_status_name(status));
-      hooks.emit("sent", step_json(s, sent));
-      if (hooks.on_sent) hooks.on_sent(sent);
-      ++accepted;
-      ++sent;
     }
     if (announced < sent && announced == done) {
       hooks.emit("step", step_json(steps[announced], announced));

@@ -1,4 +1,4 @@
-// fake_peer.cpp - the scripted firmware of the link tests: decoder, dedup cache, fault injection.
+// fake_peer.cpp - the scripted firmware of the link tests: decoder, the window (rbx1_window), fault injection.
 #include "fake_peer.hpp"
 
 #include <cerrno>
@@ -100,36 +100,40 @@ void FakePeer::handle(const rbx1_frame& f) {
     respond(f.seq, RBX1_MSG_NAK, p, n, false);
     return;
   }
-  if (rbx1_request_len(f.type) < 0) {  // as the firmware: an unknown type is NAKed, not executed
-    rbx1_nak nak{RBX1_UNKNOWN_TYPE};
-    uint8_t p[RBX1_NAK_LEN];
-    uint8_t n = rbx1_nak_pack(&nak, p);
-    respond(f.seq, RBX1_MSG_NAK, p, n, false);
-    return;
-  }
   bool corrupt = false;
   if (corrupt_next > 0) {
     --corrupt_next;
     corrupt = true;
   }
-  // At-most-once: the same SEQ and CRC as the last executed request gets the remembered response.
-  if (f.type != RBX1_MSG_ESTOP && have_last_ && f.seq == last_req_seq_ && f.crc == last_crc_) {
+  // The window, as in the firmware: duplicates answered from memory, gaps and old frames NAKed, ESTOP outside.
+  const rbx1_window_entry* dup = nullptr;
+  uint8_t before_hello = 0xFF;
+  uint8_t verdict = rbx1_window_accept(&window_, &f, &dup, &before_hello);
+  if (verdict == RBX1_WIN_DUPLICATE) {
     ++cached_replies_;
-    respond(f.seq, last_resp_type_, last_resp_, last_resp_len_, corrupt);
+    respond(f.seq, dup->type, dup->payload, dup->len, corrupt);
+    return;
+  }
+  if (verdict == RBX1_WIN_GAP || verdict == RBX1_WIN_OLD) {
+    ++refused_;
+    rbx1_nak nak{verdict == RBX1_WIN_GAP ? uint8_t(RBX1_SEQ_GAP) : uint8_t(RBX1_SEQ_OLD)};
+    uint8_t p[RBX1_NAK_LEN];
+    respond(f.seq, RBX1_MSG_NAK, p, rbx1_nak_pack(&nak, p), false);
+    return;
+  }
+  if (f.type == RBX1_MSG_HELLO && before_hello != 0xFF) last_seq = before_hello;
+  if (rbx1_request_len(f.type) < 0) {  // as the firmware: an unknown type is NAKed, not executed, remembered
+    rbx1_nak nak{RBX1_UNKNOWN_TYPE};
+    uint8_t p[RBX1_NAK_LEN];
+    uint8_t n = rbx1_nak_pack(&nak, p);
+    rbx1_window_record(&window_, f.seq, f.crc, RBX1_MSG_NAK, p, n);
+    respond(f.seq, RBX1_MSG_NAK, p, n, false);
     return;
   }
   if (silence_left_ > 0) --silence_left_;  // counts new requests; a retransmission above is answered again
   uint8_t resp[RBX1_MAX_PAYLOAD];
   uint8_t len = execute(f, resp);
-  if (f.type != RBX1_MSG_ESTOP) {
-    have_last_ = true;
-    last_req_seq_ = f.seq;
-    last_crc_ = f.crc;
-    last_resp_type_ = RBX1_RESPONSE(f.type);
-    last_resp_len_ = len;
-    std::memcpy(last_resp_, resp, len);
-    last_seq = f.seq;
-  }
+  if (verdict == RBX1_WIN_NEW) rbx1_window_record(&window_, f.seq, f.crc, RBX1_RESPONSE(f.type), resp, len);
   if (stale_first) {
     uint8_t other[RBX1_MAX_PAYLOAD];
     std::memcpy(other, resp, len);
@@ -158,6 +162,7 @@ uint8_t FakePeer::execute(const rbx1_frame& f, uint8_t* resp) {
       h.queue_size = 8;
       h.capabilities = 0x10;
       h.last_seq = last_seq;
+      h.window = window_size;
       return rbx1_hello_resp_pack(&h, resp);
     }
     case RBX1_MSG_STATUS: {

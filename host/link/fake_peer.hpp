@@ -10,11 +10,12 @@
 #include <vector>
 
 #include "rbx1_proto.h"
+#include "rbx1_window.h"
 
 namespace rbx1::link::test {
 
-// Speaks the protocol like the firmware (at-most-once execution with a cached response; ESTOP exempt), with
-// fault knobs the tests set before or between requests.
+// Speaks the protocol like the firmware (the window: in-order, at-most-once execution with remembered answers;
+// ESTOP exempt), with fault knobs the tests set before or between requests.
 class FakePeer {
  public:
   struct Received {
@@ -38,6 +39,7 @@ class FakePeer {
   std::atomic<int> delay_ms{0};        // ... for this long (the peer keeps reading meanwhile)
   std::atomic<uint8_t> proto_version{RBX1_PROTO_VERSION};
   std::atomic<uint8_t> last_seq{41};   // reported by HELLO until a request is executed
+  std::atomic<uint8_t> window_size{RBX1_WINDOW};  // HELLO's window
   // After the next executed request of this type, execute silence_after_count more new requests (retransmissions
   // meanwhile answered as usual), then answer nothing at all (a line that dies at a chosen point of an exchange);
   // -1 disarms and ends the silence.
@@ -48,6 +50,7 @@ class FakePeer {
   std::vector<Received> received() const;
   int executed(uint8_t type) const;
   int cached_replies() const { return cached_replies_; }
+  int refused() const { return refused_; }  // NAKs SEQ_GAP and SEQ_OLD sent
   std::chrono::steady_clock::time_point sent_at(uint8_t type) const;  // last response of this type sent
 
  private:
@@ -74,11 +77,8 @@ class FakePeer {
   std::map<uint8_t, std::chrono::steady_clock::time_point> sent_at_;
   std::vector<Pending> pending_;
   std::atomic<int> cached_replies_{0};
-  // at-most-once memory, as in the firmware
-  bool have_last_ = false;
-  uint8_t last_req_seq_ = 0, last_resp_type_ = 0, last_resp_len_ = 0;
-  uint16_t last_crc_ = 0;
-  uint8_t last_resp_[RBX1_MAX_PAYLOAD];
+  std::atomic<int> refused_{0};
+  rbx1_window window_{};  // at-most-once memory, as in the firmware
   uint16_t moves_done_ = 0;
   uint8_t homed_ = 0, enabled_ = 0;  // SET_POSITION/HOME and ENABLE, reported by STATUS
   int silence_left_ = -1;            // frames still answered before the silence; -1 none armed

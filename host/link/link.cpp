@@ -1,7 +1,9 @@
-// link.cpp - stop-and-wait requests, retransmission, response matching, e-stop, reconnect (PROTOCOL.md).
+// link.cpp - requests one at a time and windowed streams, retransmission (go-back-N), answer matching, e-stop,
+// reconnect (PROTOCOL.md).
 #include "link.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cstring>
 #include <poll.h>
@@ -29,6 +31,7 @@ void parse_link_config(rbx1::config::Section link, LinkConfig& out) {
   out.retries = static_cast<int>(link.integer("retries", out.retries, 0, 20));
   out.heartbeat_ms = static_cast<int>(link.integer("heartbeat_ms", out.heartbeat_ms, 20, 30000));
   out.boot_wait_ms = static_cast<int>(link.integer("boot_wait_ms", out.boot_wait_ms, 0, 10000));
+  out.window = static_cast<int>(link.integer("window", out.window, 1, 64));
   link.reject_unknown();
 }
 
@@ -46,8 +49,17 @@ void Link::set_timing(int timeout_ms, int retries) {
   retries_ = retries;
 }
 
+void Link::set_window(int max_in_flight) { max_window_ = std::max(1, max_in_flight); }
+
+int Link::window() const {
+  std::lock_guard<std::mutex> lock(state_mu_);
+  if (!hello_.window) return 1;
+  return std::min<int>(hello_.window, max_window_);
+}
+
 int Link::open(const LinkConfig& config, std::string& error) {
   set_timing(config.timeout_ms, config.retries);
+  set_window(config.window);
   set_boot_wait(config.boot_wait_ms);
   return open(config.port, config.baud, error);
 }
@@ -122,8 +134,9 @@ int Link::handshake(std::string& error) {
     error = name_ + ": HELLO refused: " + rbx1_status_name(h.status);
     return -EPROTO;
   }
-  spdlog::info("{}: firmware {}.{}.{}, {} joints, queue {}, capabilities 0x{:04x}, continuing at seq {}", name_,
-               h.fw_major, h.fw_minor, h.fw_patch, h.joints, h.queue_size, h.capabilities, next_seq());
+  spdlog::info("{}: firmware {}.{}.{}, {} joints, queue {}, window {}, capabilities 0x{:04x}, continuing at seq {}",
+               name_, h.fw_major, h.fw_minor, h.fw_patch, h.joints, h.queue_size, h.window, h.capabilities,
+               next_seq());
   return 0;
 }
 
@@ -234,26 +247,32 @@ void Link::on_frame(void* ctx, const rbx1_frame* f) {
     self->counters_.naks++;
     rbx1_nak nak{};
     rbx1_nak_unpack(&nak, f->payload, f->len);
-    for (Waiter* w : {self->waiting_, self->estop_waiting_}) {
+    auto mark = [&](Waiter* w) {
       if (w && !w->done && w->seq == f->seq) {
         w->nak = true;
         w->nak_reason = nak.reason;
         spdlog::debug("{}: NAK {} for seq {}", self->name_, rbx1_status_name(nak.reason), f->seq);
       }
-    }
+    };
+    for (Waiter* w : self->waiting_) mark(w);
+    mark(self->estop_waiting_);
     lock.unlock();
     self->state_cv_.notify_all();
     return;
   }
-  for (Waiter* w : {self->waiting_, self->estop_waiting_}) {
-    if (w && !w->done && w->seq == f->seq && f->type == RBX1_RESPONSE(w->type)) {
-      w->done = true;
-      w->len = f->len;
-      std::memcpy(w->payload, f->payload, f->len);
-      lock.unlock();
-      self->state_cv_.notify_all();
-      return;
-    }
+  auto take = [&](Waiter* w) {
+    if (!w || w->done || w->seq != f->seq || f->type != RBX1_RESPONSE(w->type)) return false;
+    w->done = true;
+    w->len = f->len;
+    std::memcpy(w->payload, f->payload, f->len);
+    return true;
+  };
+  bool ours = take(self->estop_waiting_);
+  for (size_t i = 0; !ours && i < self->waiting_.size(); ++i) ours = take(self->waiting_[i]);
+  if (ours) {
+    lock.unlock();
+    self->state_cv_.notify_all();
+    return;
   }
   // A late duplicate of an answered request, or a response to one given up on: not ours to act on.
   self->counters_.stale++;
@@ -287,12 +306,15 @@ int Link::write_frame(const uint8_t* frame, size_t n) {
   return 0;
 }
 
-// Sends frame, then waits for its response, resending the same bytes on timeout or NAK. slot is the waiter
-// pointer the reader thread looks at (waiting_ or estop_waiting_).
-int Link::transact(Waiter*& slot, Waiter& w, const uint8_t* frame, size_t n, uint8_t* resp, uint8_t& resp_len) {
+// Sends frame, then waits for its response, resending the same bytes on timeout or NAK. The reader thread finds w
+// in estop_waiting_ (estop) or waiting_.
+int Link::transact(Waiter& w, bool estop, const uint8_t* frame, size_t n, uint8_t* resp, uint8_t& resp_len) {
   std::unique_lock<std::mutex> lock(state_mu_);
   if (!connected_) return down_error();
-  slot = &w;
+  if (estop)
+    estop_waiting_ = &w;
+  else
+    waiting_.assign(1, &w);
   int result = -ETIMEDOUT;
   for (int attempt = 0; attempt <= retries_; ++attempt) {
     if (attempt > 0) {
@@ -325,9 +347,16 @@ int Link::transact(Waiter*& slot, Waiter& w, const uint8_t* frame, size_t n, uin
       result = -EOPNOTSUPP;
       break;
     }
+    if (w.nak && w.nak_reason == RBX1_SEQ_OLD) {  // a SEQ of the past: resending it cannot help
+      result = -EPROTO;
+      break;
+    }
     if (!w.nak) counters_.timeouts++;
   }
-  slot = nullptr;
+  if (estop)
+    estop_waiting_ = nullptr;
+  else
+    waiting_.clear();
   if (result == -ETIMEDOUT) {
     counters_.link_down++;
     spdlog::warn("{}: link down: type 0x{:02x} seq {} unanswered after {} transmissions", name_, w.type, w.seq,
@@ -348,7 +377,26 @@ int Link::request(uint8_t type, const uint8_t* payload, uint8_t len, uint8_t* re
   return request_locked(type, payload, len, resp, resp_len);
 }
 
+// After a request failed unanswered, its SEQ may be missing from the firmware's order (every later one would be a
+// gap): the next request starts a new session first. Under request_mu_.
+int Link::resync_locked() {
+  if (!resync_) return 0;
+  rbx1_hello_req req{RBX1_PROTO_VERSION};
+  uint8_t p[RBX1_HELLO_REQ_LEN];
+  resync_ = false;
+  uint8_t resp[RBX1_MAX_PAYLOAD], resp_len = 0;
+  int r = request_locked(RBX1_MSG_HELLO, p, rbx1_hello_req_pack(&req, p), resp, resp_len);
+  if (r < 0) return r;  // request_locked has set resync_ again
+  rbx1_hello_resp h{};
+  if (rbx1_hello_resp_unpack(&h, resp, resp_len) != RBX1_OK || h.status != RBX1_OK) return -EPROTO;
+  std::lock_guard<std::mutex> lock(state_mu_);
+  hello_ = h;
+  return 0;
+}
+
 int Link::request_locked(uint8_t type, const uint8_t* payload, uint8_t len, uint8_t* resp, uint8_t& resp_len) {
+  if (type != RBX1_MSG_HELLO)
+    if (int r = resync_locked(); r < 0) return r;
   Waiter w;
   w.type = type;
   {
@@ -359,7 +407,151 @@ int Link::request_locked(uint8_t type, const uint8_t* payload, uint8_t len, uint
   uint8_t frame[RBX1_MAX_FRAME];
   size_t n = rbx1_frame_encode(frame, sizeof frame, w.seq, type, payload, len);
   if (!n) return -EINVAL;
-  return transact(waiting_, w, frame, n, resp, resp_len);
+  int r = transact(w, false, frame, n, resp, resp_len);
+  if (r == -ETIMEDOUT || r == -EPROTO) resync_ = true;
+  return r;
+}
+
+int Link::stream(std::vector<StreamRequest>& reqs) {
+  const size_t n = reqs.size();
+  if (n == 0) return 0;
+  std::lock_guard<std::mutex> request_lock(request_mu_);
+  if (int r = resync_locked(); r < 0) return r;
+  std::vector<Waiter> ws(n);
+  std::vector<std::array<uint8_t, RBX1_MAX_FRAME>> frames(n);
+  std::vector<uint8_t> sizes(n);
+  const size_t win = static_cast<size_t>(window());
+  {
+    std::lock_guard<std::mutex> lock(state_mu_);
+    if (!connected_) return down_error();
+    for (size_t i = 0; i < n; ++i) {
+      reqs[i].answered = false;
+      ws[i].type = reqs[i].type;
+      ws[i].seq = next_seq_++;
+    }
+  }
+  for (size_t i = 0; i < n; ++i) {
+    sizes[i] = static_cast<uint8_t>(
+        rbx1_frame_encode(frames[i].data(), RBX1_MAX_FRAME, ws[i].seq, reqs[i].type, reqs[i].payload, reqs[i].len));
+    if (!sizes[i]) return -EINVAL;
+  }
+  std::vector<Clock::time_point> sent_at(n);
+  std::vector<uint8_t> burst;
+  auto send = [&](const std::vector<size_t>& which, std::unique_lock<std::mutex>& lock) {
+    burst.clear();
+    for (size_t i : which) burst.insert(burst.end(), frames[i].begin(), frames[i].begin() + sizes[i]);
+    auto now = Clock::now();
+    for (size_t i : which) sent_at[i] = now;
+    lock.unlock();
+    int r = write_frame(burst.data(), burst.size());
+    lock.lock();
+    return r;
+  };
+  const double byte_s = 10.0 / (baud_ ? baud_ : 115200);
+  std::unique_lock<std::mutex> lock(state_mu_);
+  size_t base = 0, next = 0;
+  int go_backs = 0, result = 0;
+  Clock::time_point quiet_until{};
+  while (base < n) {
+    if (next < n && next - base < win) {  // fill the window
+      std::vector<size_t> fresh;
+      for (; next < n && next - base < win; ++next) {
+        fresh.push_back(next);
+        waiting_.push_back(&ws[next]);
+      }
+      if (int r = send(fresh, lock); r < 0) {
+        result = r;
+        break;
+      }
+    }
+    const int wait_ms = (ws[base].type == RBX1_MSG_CONFIG_SET || ws[base].type == RBX1_MSG_CONFIG_RESET)
+                            ? std::max(timeout_ms_.load(), 1000)
+                            : timeout_ms_.load();
+    auto deadline = sent_at[base] + std::chrono::milliseconds(wait_ms);
+    auto any_nak = [&] {
+      for (size_t i = base; i < next; ++i)
+        if (ws[i].nak) return true;
+      return false;
+    };
+    state_cv_.wait_until(lock, deadline, [&] { return ws[base].done || any_nak() || !connected_; });
+    if (ws[base].done) {
+      while (base < next && ws[base].done) {
+        waiting_.erase(std::find(waiting_.begin(), waiting_.end(), &ws[base]));
+        last_done_ = Clock::now();
+        counters_.requests++;
+        ++base;
+      }
+      go_backs = 0;
+      continue;
+    }
+    if (!connected_) {
+      result = down_error();
+      break;
+    }
+    bool nak = false;
+    for (size_t i = base; i < next && !result; ++i) {
+      if (!ws[i].nak) continue;
+      ws[i].nak = false;
+      if (ws[i].nak_reason == RBX1_UNKNOWN_TYPE) result = -EOPNOTSUPP;
+      if (ws[i].nak_reason == RBX1_SEQ_OLD) result = -EPROTO;
+      nak = true;
+    }
+    if (result) break;
+    auto now = Clock::now();
+    bool timed_out = now >= deadline;
+    if (!timed_out && !(nak && now >= quiet_until)) continue;  // a NAK about a copy sent before the last go-back
+    if (timed_out) counters_.timeouts++;
+    if (++go_backs > retries_) {
+      result = -ETIMEDOUT;
+      counters_.link_down++;
+      spdlog::warn("{}: link down: type 0x{:02x} seq {} unanswered after {} go-backs", name_, ws[base].type,
+                   ws[base].seq, retries_.load());
+      break;
+    }
+    // Go back: every unanswered request in flight again, oldest first, the same bytes.
+    std::vector<size_t> again;
+    for (size_t i = base; i < next; ++i)
+      if (!ws[i].done) again.push_back(i);
+    counters_.retransmissions += again.size();
+    spdlog::debug("{}: go-back from seq {} ({} frames, {})", name_, ws[base].seq, again.size(),
+                  timed_out ? "timeout" : "NAK");
+    if (int r = send(again, lock); r < 0) {
+      result = r;
+      break;
+    }
+    size_t bytes = 0;
+    for (size_t i : again) bytes += sizes[i];
+    quiet_until = Clock::now() + std::chrono::microseconds(static_cast<int64_t>(bytes * byte_s * 1e6) + 20000);
+  }
+  waiting_.clear();
+  if (result == -ETIMEDOUT || result == -EPROTO) resync_ = true;
+  for (size_t i = 0; i < n; ++i) {
+    reqs[i].answered = ws[i].done;
+    reqs[i].resp_len = ws[i].len;
+    std::memcpy(reqs[i].resp, ws[i].payload, ws[i].len);
+  }
+  return result;
+}
+
+int Link::move_stream(const std::vector<rbx1_move_req>& reqs, std::vector<rbx1_move_resp>& out,
+                      std::vector<bool>& answered) {
+  std::vector<StreamRequest> s(reqs.size());
+  for (size_t i = 0; i < reqs.size(); ++i) {
+    s[i].type = RBX1_MSG_MOVE;
+    s[i].len = rbx1_move_req_pack(&reqs[i], s[i].payload);
+  }
+  int r = stream(s);
+  out.assign(reqs.size(), rbx1_move_resp{});
+  answered.assign(reqs.size(), false);
+  for (size_t i = 0; i < reqs.size(); ++i) {
+    if (!s[i].answered) continue;
+    answered[i] = true;
+    if (rbx1_move_resp_unpack(&out[i], s[i].resp, s[i].resp_len) != RBX1_OK) {
+      if (s[i].resp_len < 1) return -EBADMSG;
+      out[i].status = s[i].resp[0];  // a refusal may carry the status alone
+    }
+  }
+  return r;
 }
 
 template <typename Resp>
@@ -391,10 +583,10 @@ int Link::hello(rbx1_hello_resp& out) {
                   RBX1_PROTO_VERSION);
     return -EPROTO;
   }
-  if (out.status == RBX1_OK) {
+  if (out.status == RBX1_OK) {  // a new session: the order continues after the HELLO's own SEQ (next_seq_)
     std::lock_guard<std::mutex> lock(state_mu_);
-    next_seq_ = static_cast<uint8_t>(out.last_seq + 1);
     hello_ = out;
+    resync_ = false;
   }
   return 0;
 }
@@ -471,14 +663,14 @@ int Link::estop(rbx1_estop_resp& out) {
   {
     std::lock_guard<std::mutex> state(state_mu_);
     if (!connected_) return down_error();
-    w.seq = next_seq_++;
+    w.seq = next_seq_;  // outside the window: the SEQ is echoed, not consumed (the next request still uses it)
   }
   uint8_t frame[RBX1_MAX_FRAME];
   size_t n = rbx1_frame_encode(frame, sizeof frame, w.seq, RBX1_MSG_ESTOP, nullptr, 0);
   uint8_t resp[RBX1_MAX_PAYLOAD];
   uint8_t resp_len = 0;
   spdlog::warn("{}: ESTOP (seq {})", name_, w.seq);
-  int r = transact(estop_waiting_, w, frame, n, resp, resp_len);
+  int r = transact(w, true, frame, n, resp, resp_len);
   if (r < 0) return r;
   out = rbx1_estop_resp{};
   if (rbx1_estop_resp_unpack(&out, resp, resp_len) != RBX1_OK) {

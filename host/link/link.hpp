@@ -1,4 +1,5 @@
-// link.hpp - the host side of the RBX1 link: stop-and-wait requests over a serial port, e-stop from any thread.
+// link.hpp - the host side of the RBX1 link: requests one at a time or streamed with a window in flight over a
+// serial port, e-stop from any thread.
 #pragma once
 #include <atomic>
 #include <chrono>
@@ -8,6 +9,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "config.hpp"
 #include "rbx1_proto.h"
@@ -21,6 +23,7 @@ struct LinkConfig {
   int timeout_ms = 100;    // per transmission (PROTOCOL.md: 100 ms)
   int retries = 5;         // retransmissions before the link is declared down (PROTOCOL.md: 5)
   int heartbeat_ms = 250;  // idle interval between HEARTBEATs; must stay below the firmware's HEARTBEAT_MS
+  int window = 8;          // requests in flight in stream() at most (also limited by the firmware's HELLO window)
   int boot_wait_ms = 8000; // how long open() waits for a board in its bootloader (the first open after plug-in or
                            // after flashing resets an Arduino): HELLO, 6 s of silence, HELLO again
 };
@@ -29,7 +32,7 @@ void parse_link_config(rbx1::config::Section link, LinkConfig& out);
 // Counters since construction (they survive reconnects).
 struct LinkStats {
   uint64_t requests = 0;         // requests completed with a response
-  uint64_t retransmissions = 0;  // the same frame sent again (timeout or NAK)
+  uint64_t retransmissions = 0;  // frames sent again (timeout or NAK; a go-back counts each frame it resends)
   uint64_t timeouts = 0;         // transmissions that got no response in time
   uint64_t naks = 0;             // NAK frames received
   uint64_t stale = 0;            // responses that matched no outstanding request (late duplicates etc.)
@@ -40,9 +43,19 @@ struct LinkStats {
   uint64_t bytes_received = 0;
 };
 
-// One link to one firmware. Requests (request() and the typed helpers) are serialised: one outstanding at a
-// time, as the protocol requires, whichever thread calls. estop() bypasses that queue. A reader thread decodes
-// every incoming byte and hands responses to the waiting caller.
+// One request of a stream(): type and payload in; answered, and the response payload (status first), out.
+struct StreamRequest {
+  uint8_t type = 0;
+  uint8_t len = 0;
+  uint8_t payload[RBX1_MAX_PAYLOAD] = {};
+  bool answered = false;
+  uint8_t resp_len = 0;
+  uint8_t resp[RBX1_MAX_PAYLOAD] = {};
+};
+
+// One link to one firmware. Requests (request(), the typed helpers and stream()) are serialised, whichever thread
+// calls: request() has one in flight, stream() up to window() (PROTOCOL.md "Window"). estop() bypasses that
+// queue. A reader thread decodes every incoming byte and hands each answer to the waiting caller.
 // All int-returning calls give 0 when a response arrived (its status is the typed struct's first field) or a
 // negative errno: -ETIMEDOUT link down after all retransmissions, -ENODEV/-EIO port gone (reconnect() then),
 // -ENOTCONN not open, -EPROTO protocol version mismatch, -EBADMSG response of the wrong length,
@@ -77,6 +90,18 @@ class Link {
   // Any request by type with a raw payload; resp receives the response payload (status first).
   int request(uint8_t type, const uint8_t* payload, uint8_t len, uint8_t* resp, uint8_t& resp_len);
 
+  // Sends reqs in order with up to window() in flight; go-back-N on a timeout of the oldest unanswered one or a NAK
+  // of one in flight. 0 when every one was answered; else a negative errno as request() gives it, with each
+  // request's `answered` saying whether its response arrived (the firmware runs requests in SEQ order, so an
+  // answered request means every one before it was handled, answered or not).
+  int stream(std::vector<StreamRequest>& reqs);
+  // MOVE requests as a stream; out[i] is valid where answered[i].
+  int move_stream(const std::vector<rbx1_move_req>& reqs, std::vector<rbx1_move_resp>& out,
+                  std::vector<bool>& answered);
+  // Requests in flight in stream(): min(set_window(), the firmware's HELLO window); 1 before a HELLO.
+  int window() const;
+  void set_window(int max_in_flight);
+
   // Typed helpers, one per message.
   int hello(rbx1_hello_resp& out);
   int status(rbx1_status_resp& out);
@@ -109,7 +134,7 @@ class Link {
   uint8_t next_seq() const;
 
  private:
-  struct Waiter {  // one outstanding request awaiting its response
+  struct Waiter {  // one request in flight awaiting its answer
     uint8_t seq = 0, type = 0;
     bool done = false, nak = false;
     uint8_t nak_reason = 0;
@@ -126,17 +151,18 @@ class Link {
   void port_gone(int err);
   int down_error() const { return gone_error_ ? -gone_error_ : -ENOTCONN; }  // under state_mu_
   int write_frame(const uint8_t* frame, size_t n);
-  int transact(Waiter*& slot, Waiter& w, const uint8_t* frame, size_t n, uint8_t* resp, uint8_t& resp_len);
+  int transact(Waiter& w, bool estop, const uint8_t* frame, size_t n, uint8_t* resp, uint8_t& resp_len);
   int request_locked(uint8_t type, const uint8_t* payload, uint8_t len, uint8_t* resp, uint8_t& resp_len);
+  int resync_locked();
   template <typename Resp>
   int typed(uint8_t type, const uint8_t* payload, uint8_t len, Resp& out,
             uint8_t (*unpack)(Resp*, const uint8_t*, uint8_t));
 
   std::string path_, name_;
   int baud_ = 0;  // 0 when opened with open_fd (no termios, no reopen)
-  std::atomic<int> timeout_ms_{100}, retries_{5}, boot_wait_ms_{2500};
+  std::atomic<int> timeout_ms_{100}, retries_{5}, boot_wait_ms_{2500}, max_window_{8};
 
-  std::mutex request_mu_;  // one request outstanding at a time
+  std::mutex request_mu_;  // one request() or stream() at a time
   std::mutex estop_mu_;    // one e-stop exchange at a time
   std::mutex write_mu_;    // whole frames on the wire, never interleaved
   mutable std::mutex state_mu_;
@@ -146,7 +172,8 @@ class Link {
   std::atomic<bool> connected_{false};
   int gone_error_ = 0;     // the errno that took the port down (under state_mu_)
   uint8_t next_seq_ = 0;   // under state_mu_
-  Waiter* waiting_ = nullptr;        // the outstanding request (under state_mu_)
+  std::atomic<bool> resync_{false};  // a HELLO before the next request
+  std::vector<Waiter*> waiting_;     // the requests in flight (under state_mu_)
   Waiter* estop_waiting_ = nullptr;  // the outstanding e-stop (under state_mu_)
   rbx1_decoder decoder_;   // reader thread only
   rbx1_hello_resp hello_{};

@@ -72,16 +72,22 @@ struct LinkTest : ::testing::Test {
 
 }  // namespace
 
-TEST_F(LinkTest, HelloContinuesFromLastSeq) {
+TEST_F(LinkTest, HelloStartsASessionAndNumberingFollowsIt) {
   EXPECT_EQ(link.firmware().joints, 6);
   EXPECT_EQ(link.firmware().fw_minor, 9);
-  EXPECT_EQ(link.next_seq(), 42);  // the peer's last_seq was 41
+  EXPECT_EQ(link.firmware().window, RBX1_WINDOW);
+  EXPECT_EQ(link.window(), RBX1_WINDOW);
+  const uint8_t hello_seq = peer.received().back().seq;
+  EXPECT_EQ(link.next_seq(), static_cast<uint8_t>(hello_seq + 1));  // whatever the peer's last_seq (41)
   rbx1_status_resp s{};
   ASSERT_EQ(link.status(s), 0);
   EXPECT_EQ(s.status, RBX1_OK);
   EXPECT_EQ(s.position[5], 2500);
-  EXPECT_EQ(peer.received().back().seq, 42);
+  EXPECT_EQ(peer.received().back().seq, static_cast<uint8_t>(hello_seq + 1));
   EXPECT_EQ(delta().retransmissions, 0u);
+  EXPECT_EQ(peer.refused(), 0);
+  link.set_window(3);
+  EXPECT_EQ(link.window(), 3);
 }
 
 TEST_F(LinkTest, EveryTypedHelperGetsItsResponse) {
@@ -175,6 +181,66 @@ TEST_F(LinkTest, CorruptResponseIsRetransmittedNotReExecuted) {
   EXPECT_EQ(s.moves_done, 1);
 }
 
+std::vector<rbx1_move_req> move_batch(int n, int32_t base) {
+  std::vector<rbx1_move_req> v;
+  for (int i = 0; i < n; ++i) v.push_back(some_move(base + i));
+  return v;
+}
+
+TEST_F(LinkTest, StreamKeepsTheWindowInFlight) {
+  std::vector<rbx1_move_resp> out;
+  std::vector<bool> answered;
+  ASSERT_EQ(link.move_stream(move_batch(40, 0), out, answered), 0);
+  for (int i = 0; i < 40; ++i) {
+    EXPECT_TRUE(answered[i]);
+    EXPECT_EQ(out[i].status, RBX1_OK);
+  }
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 40);
+  EXPECT_EQ(peer.cached_replies(), 0);
+  EXPECT_EQ(peer.refused(), 0);
+  EXPECT_EQ(delta().retransmissions, 0u);
+  // SEQs on the wire: consecutive, each once.
+  auto rx = peer.received();
+  for (size_t i = rx.size() - 39; i < rx.size(); ++i) EXPECT_EQ(rx[i].seq, static_cast<uint8_t>(rx[i - 1].seq + 1));
+}
+
+TEST_F(LinkTest, StreamGoesBackAfterALostRequest) {
+  peer.drop_next = 1;  // the stream's first frame vanishes: the ones after it are gaps until it comes again
+  std::vector<rbx1_move_resp> out;
+  std::vector<bool> answered;
+  ASSERT_EQ(link.move_stream(move_batch(20, 0), out, answered), 0);
+  for (int i = 0; i < 20; ++i) EXPECT_EQ(out[i].status, RBX1_OK) << i;
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 20);  // nothing lost, nothing twice
+  EXPECT_GE(peer.refused(), 1);                 // NAK SEQ_GAP for the frames after the lost one
+  EXPECT_GE(delta().retransmissions, 1u);
+}
+
+TEST_F(LinkTest, StreamLostAnswersComeFromTheWindow) {
+  peer.corrupt_next = 2;  // the first two answers arrive broken: those requests are sent again, answered from memory
+  std::vector<rbx1_move_resp> out;
+  std::vector<bool> answered;
+  ASSERT_EQ(link.move_stream(move_batch(12, 0), out, answered), 0);
+  for (int i = 0; i < 12; ++i) EXPECT_EQ(out[i].status, RBX1_OK) << i;
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 12);
+  EXPECT_GE(peer.cached_replies(), 2);
+}
+
+TEST_F(LinkTest, StreamLinkDownSaysWhichWereAnswered) {
+  link.set_timing(100, 2);
+  peer.silence_after_type = RBX1_MSG_MOVE;  // three MOVEs run and are answered, then the line dies
+  peer.silence_after_count = 2;
+  std::vector<rbx1_move_resp> out;
+  std::vector<bool> answered;
+  EXPECT_EQ(link.move_stream(move_batch(10, 0), out, answered), -ETIMEDOUT);
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 3);
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(answered[i], i < 3) << i;
+  peer.silence_after_type = -1;
+  rbx1_status_resp s{};
+  ASSERT_EQ(link.status(s), 0);  // a HELLO first (the new session), then the STATUS
+  EXPECT_EQ(s.moves_done, 3);
+  EXPECT_EQ(peer.refused(), 0);
+}
+
 TEST_F(LinkTest, DuplicateAndStaleResponsesAreDiscarded) {
   peer.duplicate = true;
   peer.stale_first = true;
@@ -206,10 +272,16 @@ TEST_F(LinkTest, LinkDownAfterFiveRetransmissions) {
   EXPECT_EQ(with_seq(peer, seq).size(), 6u);
   EXPECT_EQ(delta().retransmissions, 5u);
   EXPECT_EQ(delta().link_down, 1u);
-  // The link recovers when the peer answers again; the next request has a new SEQ.
+  // The link recovers when the peer answers again: a HELLO first (the lost SEQ would be a gap in the firmware's
+  // order), then the request, each with a new SEQ.
   peer.drop_next = 0;
   ASSERT_EQ(link.status(s), 0);
-  EXPECT_EQ(peer.received().back().seq, static_cast<uint8_t>(seq + 1));
+  auto rx = peer.received();
+  ASSERT_GE(rx.size(), 2u);
+  EXPECT_EQ(rx[rx.size() - 2].type, RBX1_MSG_HELLO);
+  EXPECT_EQ(rx[rx.size() - 2].seq, static_cast<uint8_t>(seq + 1));
+  EXPECT_EQ(rx.back().seq, static_cast<uint8_t>(seq + 2));
+  EXPECT_EQ(peer.refused(), 0);
 }
 
 TEST_F(LinkTest, ConfiguredTimingIsUsed) {
@@ -409,9 +481,11 @@ TEST(Link, ReconnectsWhenThePortReturns) {
   EXPECT_EQ(link.wait_reconnect(2000, error), 0) << error;
   EXPECT_GE(ms_since(t0), 140);  // only once the path leads to a device again
   swap.join();
-  EXPECT_EQ(link.next_seq(), 201);
+  const uint8_t hello_seq = b.received().back().seq;  // a new session: numbering follows the HELLO
+  EXPECT_EQ(b.received().back().type, RBX1_MSG_HELLO);
+  EXPECT_EQ(link.next_seq(), static_cast<uint8_t>(hello_seq + 1));
   ASSERT_EQ(link.status(s), 0);
-  EXPECT_EQ(b.received().back().seq, 201);
+  EXPECT_EQ(b.received().back().seq, static_cast<uint8_t>(hello_seq + 1));
   EXPECT_EQ(b.executed(RBX1_MSG_HELLO), 1);
   EXPECT_EQ(link.stats().reconnects, 1u);
   link.close();

@@ -1,9 +1,11 @@
-/* fuzz_decoder.c - libFuzzer target: the stream decoder under arbitrary bytes and chunkings, and every unpack. */
+/* fuzz_decoder.c - libFuzzer target: the stream decoder under arbitrary bytes and chunkings, the receiver's window
+ * fed with every decoded frame, and every unpack. */
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "rbx1_proto.h"
+#include "rbx1_window.h"
 
 #define CHECK(cond) \
   do {              \
@@ -17,9 +19,31 @@ typedef struct {
   size_t stream_len;
   uint32_t hash;
   size_t events;
+  rbx1_window win; /* the firmware's window, fed every frame */
 } pass;
 
+
 static void mix(pass *p, uint32_t v) { p->hash = (p->hash ^ v) * 16777619u; }
+
+/* The window's invariants for one frame: a duplicate points to the remembered (SEQ, CRC); a new frame becomes the
+ * newest entry and sets the order; nothing else changes the window. */
+static void window_step(pass *p, const rbx1_frame *f) {
+  const rbx1_window_entry *dup = NULL;
+  uint8_t last = 0, before_count = p->win.count, before_expect = p->win.expect;
+  uint8_t verdict = rbx1_window_accept(&p->win, f, &dup, &last);
+  CHECK(verdict <= RBX1_WIN_BYPASS);
+  CHECK(p->win.count <= RBX1_WINDOW);
+  if (verdict == RBX1_WIN_DUPLICATE) {
+    CHECK(dup != NULL && dup->seq == f->seq && dup->crc == f->crc && dup->len <= RBX1_MAX_RESP_LEN);
+  } else if (verdict == RBX1_WIN_NEW) {
+    rbx1_window_record(&p->win, f->seq, f->crc, (uint8_t)(f->type | 0x80u), f->payload, f->len);
+    CHECK(rbx1_window_last_seq(&p->win) == f->seq && p->win.expect == (uint8_t)(f->seq + 1u));
+    CHECK(rbx1_window_classify(&p->win, f->seq, f->crc, &dup) == RBX1_WIN_DUPLICATE);
+  } else {
+    CHECK(p->win.count == before_count && p->win.expect == before_expect);
+  }
+  mix(p, 0x300u | verdict);
+}
 
 static int occurs_in(const uint8_t *hay, size_t n, const uint8_t *needle, size_t m) {
   size_t i;
@@ -44,6 +68,7 @@ static void on_frame(void *ctx, const rbx1_frame *f) {
   mix(p, f->len);
   mix(p, f->crc);
   for (i = 0; i < f->len; i++) mix(p, f->payload[i]);
+  window_step(p, f);
   p->events++;
 }
 

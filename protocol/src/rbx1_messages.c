@@ -52,6 +52,7 @@ uint8_t rbx1_hello_resp_pack(const rbx1_hello_resp *m, uint8_t *payload) {
   put_u8(payload + 6, m->queue_size);
   put_u16(payload + 7, m->capabilities);
   put_u8(payload + 9, m->last_seq);
+  put_u8(payload + 10, m->window);
   return RBX1_HELLO_RESP_LEN;
 }
 
@@ -66,6 +67,7 @@ uint8_t rbx1_hello_resp_unpack(rbx1_hello_resp *m, const uint8_t *payload, uint8
   m->queue_size = get_u8(payload + 6);
   m->capabilities = get_u16(payload + 7);
   m->last_seq = get_u8(payload + 9);
+  m->window = get_u8(payload + 10);
   return RBX1_OK;
 }
 
@@ -431,6 +433,8 @@ const char *rbx1_status_name(uint8_t status) {
     case RBX1_DISABLED: return "DISABLED";
     case RBX1_ESTOP_ACTIVE: return "ESTOP_ACTIVE";
     case RBX1_EEPROM_ERROR: return "EEPROM_ERROR";
+    case RBX1_SEQ_GAP: return "SEQ_GAP";
+    case RBX1_SEQ_OLD: return "SEQ_OLD";
     default: return "?";
   }
 }

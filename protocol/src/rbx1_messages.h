@@ -9,7 +9,7 @@
 extern "C" {
 #endif
 
-#define RBX1_MESSAGES_VERSION 2
+#define RBX1_MESSAGES_VERSION 3
 
 /* Message types (a response is the request type | 0x80). */
 enum rbx1_msg_type {
@@ -46,6 +46,8 @@ enum rbx1_status {
   RBX1_DISABLED = 11, /* motion while the drivers are disabled */
   RBX1_ESTOP_ACTIVE = 12, /* CLEAR_FAULT while the e-stop input is asserted */
   RBX1_EEPROM_ERROR = 13, /* configuration could not be saved */
+  RBX1_SEQ_GAP = 14, /* SEQ ahead of the next expected one: an earlier request is missing (NAK; resend in order) */
+  RBX1_SEQ_OLD = 15, /* SEQ older than the window, or a used SEQ with other bytes (NAK; never executed) */
 };
 
 /* Firmware states (STATUS.state). */
@@ -113,7 +115,7 @@ const rbx1_key_info *rbx1_key_lookup(uint8_t key);
 
 /* Payload lengths. */
 #define RBX1_HELLO_REQ_LEN 1
-#define RBX1_HELLO_RESP_LEN 10
+#define RBX1_HELLO_RESP_LEN 11
 #define RBX1_STATUS_REQ_LEN 0
 #define RBX1_STATUS_RESP_LEN 40
 #define RBX1_HEARTBEAT_REQ_LEN 0
@@ -141,6 +143,7 @@ const rbx1_key_info *rbx1_key_lookup(uint8_t key);
 #define RBX1_CONFIG_RESET_REQ_LEN 0
 #define RBX1_CONFIG_RESET_RESP_LEN 1
 #define RBX1_NAK_LEN 1
+#define RBX1_MAX_RESP_LEN 40 /* the longest response payload */
 
 /* Payload structs (host byte order; pack/unpack convert to and from the little-endian wire). */
 typedef struct {
@@ -156,6 +159,7 @@ typedef struct {
   uint8_t queue_size;
   uint16_t capabilities;
   uint8_t last_seq;
+  uint8_t window;
 } rbx1_hello_resp;
 typedef struct {
   uint8_t status;

@@ -10,7 +10,7 @@
 extern "C" {
 #endif
 
-#define RBX1_PROTO_VERSION 2
+#define RBX1_PROTO_VERSION 3
 #define RBX1_SYNC 0xA5
 #define RBX1_MAX_PAYLOAD 58
 #define RBX1_FRAME_OVERHEAD 6

@@ -21,7 +21,7 @@ template <class V> void visit(rbx1_hello_req& m, V&& v) { v("proto_version", m.p
 template <class V> void visit(rbx1_hello_resp& m, V&& v) {
   v("status", m.status); v("proto_version", m.proto_version); v("fw_major", m.fw_major);
   v("fw_minor", m.fw_minor); v("fw_patch", m.fw_patch); v("joints", m.joints); v("queue_size", m.queue_size);
-  v("capabilities", m.capabilities); v("last_seq", m.last_seq);
+  v("capabilities", m.capabilities); v("last_seq", m.last_seq); v("window", m.window);
 }
 template <class V> void visit(rbx1_status_resp& m, V&& v) {
   v("status", m.status); v("state", m.state); v("faults", m.faults); v("homed", m.homed); v("inputs", m.inputs);
@@ -211,7 +211,7 @@ TEST(Messages, LengthsMatchTheContract) {
   EXPECT_EQ(RBX1_MOVE_REQ_LEN, 26);
   EXPECT_EQ(RBX1_MOVE_RESP_LEN, 2);
   EXPECT_EQ(RBX1_STATUS_RESP_LEN, 40);
-  EXPECT_EQ(RBX1_HELLO_RESP_LEN, 10);
+  EXPECT_EQ(RBX1_HELLO_RESP_LEN, 11);
   EXPECT_EQ(rbx1_request_len(RBX1_MSG_MOVE), 26);
   EXPECT_EQ(rbx1_request_len(RBX1_MSG_STATUS), 0);
   EXPECT_EQ(rbx1_request_len(RBX1_MSG_CONFIG_SET), 6);

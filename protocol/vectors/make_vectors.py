@@ -23,7 +23,7 @@ SAMPLES = {
                     {"status": Status.OK, "proto_version": PROTO_VERSION, "fw_major": 1, "fw_minor": 2, "fw_patch": 3,
                      "joints": 6, "queue_size": 16,
                      "capabilities": int(Cap.GRIPPER | Cap.EEPROM_CONFIG | Cap.ESTOP_INPUT | Cap.SIMULATED),
-                     "last_seq": 0xA5}),
+                     "last_seq": 0xA5, "window": 8}),
     MsgType.STATUS: ({},
                      {"status": Status.OK, "state": State.MOVING, "faults": int(Fault.EEPROM_DEFAULTS),
                       "homed": 0x3F, "inputs": int(Input.LIMIT_J2 | Input.ESTOP), "enabled": 1, "queue_free": 15,
@@ -201,6 +201,65 @@ def bad_payload_vectors():
     return out
 
 
+def window_vectors():
+    """Requests fed in order to a receiver's window (rbx1_window.c, window.py). Every expected verdict is written by
+    hand here; answer_of: a duplicate is answered with the answer recorded for that step; last_seq: what a HELLO
+    that starts a session reports."""
+    def req(seq, t=MsgType.STATUS, **fields):
+        payload = messages.pack_request(t, **fields) if int(t) in [int(m) for m in MsgType] and t != MsgType.NAK \
+            else b""
+        return frame.encode(seq, t, payload).hex()
+
+    def move(seq, x):
+        return req(seq, MsgType.MOVE, target=[x, 0, 0, 0, 0, 0], duration_ms=0)
+
+    hello = lambda seq: req(seq, MsgType.HELLO, proto_version=PROTO_VERSION)  # noqa: E731
+    V = []
+
+    def add(name, description, steps):
+        V.append({"name": name, "description": description,
+                  "steps": [dict(zip(("wire", "verdict", "answer_of", "last_seq"), s)) for s in steps]})
+
+    add("power_up", "after power-up the first request is in order whatever its SEQ; then strictly SEQ + 1",
+        [(req(200), "new"), (req(201), "new"), (req(201), "duplicate", 1), (move(203, 5), "gap"),
+         (move(199, 5), "old"), (req(200), "duplicate", 0), (req(202), "new")])
+    add("window_of_8", "the last 8 requests are remembered; older ones are refused, never run again",
+        [(move(10 + i, i), "new") for i in range(10)] +
+        [(move(12, 2), "duplicate", 2), (move(11, 1), "old"), (move(10, 0), "old"), (move(19, 9), "duplicate", 9),
+         (move(20, 10), "new"), (move(12, 2), "old"), (move(13, 3), "duplicate", 3)])
+    add("seq_wraps", "SEQ wraps at 256; 1..127 ahead of the expected SEQ is a gap, 128..255 ahead is the past",
+        [(req(250 + i if i < 6 else i - 6), "new") for i in range(9)] +
+        [(req(254), "duplicate", 4), (req(1), "duplicate", 7), (req(4), "gap"), (req(130), "gap"), (req(131), "old"),
+         (req(3), "new")])
+    add("hello_restarts", "a HELLO that is not a duplicate forgets the window and its SEQ sets the order",
+        [(req(5), "new"), (req(6), "new"), (hello(100), "new", None, 6), (req(6), "old"), (hello(100), "duplicate", 2),
+         (req(101), "new"), (hello(50), "new", None, 101), (req(51), "new"), (req(30), "old"), (req(53), "gap")])
+    add("estop_bypasses", "ESTOP (any payload length, any SEQ) is executed every time and takes no place in the order",
+        [(req(9), "new"), (req(77, MsgType.ESTOP), "bypass"), (req(10, MsgType.ESTOP), "bypass"),
+         (frame.encode(10, MsgType.ESTOP, b"\x01").hex(), "bypass"), (req(10), "new"), (req(10), "duplicate", 4)])
+    add("same_seq_other_bytes", "a used SEQ with other bytes is not a retransmission: refused",
+        [(move(30, 1), "new"), (move(30, 2), "old"), (move(30, 1), "duplicate", 0)])
+    add("unknown_type_in_order", "a frame of no request type takes its place in the order (answered by NAK "
+        "UNKNOWN_TYPE, remembered)",
+        [(frame.encode(40, 0x33, b"").hex(), "new"), (frame.encode(40, 0x33, b"").hex(), "duplicate", 0),
+         (req(41), "new"), (req(43), "gap")])
+    # The Python window agrees (the C test checks the same file).
+    from rbx1proto.window import Window
+    for v in V:
+        w, answers = Window(), {}
+        for i, st in enumerate(v["steps"]):
+            f = frame.Decoder().feed(bytes.fromhex(st["wire"]))[0]
+            verdict, answer, last = w.accept(f)
+            assert verdict == st["verdict"], (v["name"], i, verdict, st)
+            if verdict == "duplicate":
+                assert answer == st["answer_of"], (v["name"], i, answer)
+            if st.get("last_seq") is not None:
+                assert last == st["last_seq"], (v["name"], i, last)
+            if verdict == "new":
+                w.record(f.seq, f.crc, i)
+    return V
+
+
 def crc_vectors():
     return [{"data": b"123456789".hex(), "crc": 0x29B1}, {"data": "", "crc": 0xFFFF},
             {"data": "00", "crc": frame.crc16(b"\x00")}, {"data": "a5" * 10, "crc": frame.crc16(b"\xa5" * 10)}]
@@ -218,6 +277,10 @@ def main():
                               "unpack refuses them (BAD_LENGTH; the firmware answers a request like this with "
                               "status BAD_LENGTH, except ESTOP, which stops the arm whatever its length)", "vectors": bad_payload_vectors()},
         "crc.json": {"description": "CRC-16/CCITT-FALSE of data (hex)", "vectors": crc_vectors()},
+        "window.json": {"description": "requests fed in order to a receiver's window, with the expected verdict "
+                        "(new, duplicate, gap, old, bypass); a new request's answer is recorded as its step index, "
+                        "answer_of names the step whose answer a duplicate gets, last_seq what a session-starting "
+                        "HELLO reports", "vectors": window_vectors()},
     }
     for name, doc in docs.items():
         with open(os.path.join(HERE, name), "w") as f:

@@ -55,6 +55,8 @@ void Probes::on_reset() { running_.clear(); }
 
 void Probes::on_uart_in(avr_irq_t*, uint32_t, void* param) {
   auto* p = static_cast<Probes*>(param);
+  if (p->rx_bytes_++ == 0) p->first_rx_ = p->avr_->cycle;
+  p->last_rx_ = p->avr_->cycle;
   if (p->in_request_ && !p->answered_) return;  // more bytes of the same request
   p->close_exchange();
   p->in_request_ = true;
@@ -64,6 +66,8 @@ void Probes::on_uart_in(avr_irq_t*, uint32_t, void* param) {
 
 void Probes::on_uart_out(avr_irq_t*, uint32_t, void* param) {
   auto* p = static_cast<Probes*>(param);
+  p->tx_bytes_++;
+  p->last_tx_ = p->avr_->cycle;
   if (!p->in_request_) return;  // unsolicited output
   p->answered_ = true;
   p->last_out_ = p->avr_->cycle;
@@ -214,7 +218,12 @@ nlohmann::json Probes::to_json() const {
   j["last_pulse_cycle"] = any_pulse_ ? nlohmann::json(last_pulse_cycle_) : nlohmann::json(nullptr);
   j["uart"] = {{"exchanges", copy.exchanges_},
                {"mean_exchange_cycles",
-                copy.exchanges_ ? static_cast<double>(copy.exchange_total_) / copy.exchanges_ : 0.0}};
+                copy.exchanges_ ? static_cast<double>(copy.exchange_total_) / copy.exchanges_ : 0.0},
+               {"rx_bytes", rx_bytes_},
+               {"tx_bytes", tx_bytes_},
+               {"first_rx_cycle", rx_bytes_ ? nlohmann::json(first_rx_) : nlohmann::json(nullptr)},
+               {"last_rx_cycle", rx_bytes_ ? nlohmann::json(last_rx_) : nlohmann::json(nullptr)},
+               {"last_tx_cycle", tx_bytes_ ? nlohmann::json(last_tx_) : nlohmann::json(nullptr)}};
   j["window_first_pulse_cycle"] = window_any_ ? nlohmann::json(window_first_) : nlohmann::json(nullptr);
   j["cycles"] = avr_ ? avr_->cycle : 0;
   return j;

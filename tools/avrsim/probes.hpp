@@ -33,6 +33,7 @@ class Probes {
     exchanges_ = 0;
     exchange_total_ = 0;
     in_request_ = false;  // an exchange in flight belongs to the previous window
+    rx_bytes_ = tx_bytes_ = 0;
   }
   // The e-stop input was just asserted (at the current cycle).
   void on_estop_edge();
@@ -71,6 +72,8 @@ class Probes {
   bool in_request_ = false, answered_ = false;
   uint64_t request_start_ = 0, last_out_ = 0;
   uint64_t exchanges_ = 0, exchange_total_ = 0;
+  // UART0 bytes since the window began: count, first and last received (into the UART), last written to UDR0.
+  uint64_t rx_bytes_ = 0, tx_bytes_ = 0, first_rx_ = 0, last_rx_ = 0, last_tx_ = 0;
 
   uint64_t first_pulse_cycle_ = 0;
   uint64_t window_first_ = 0;

@@ -1,12 +1,12 @@
 // commands.cpp - request handlers (PROTOCOL.md "Messages"); each states its wire format and valid states.
 #include "commands.h"
 
-#include "dedup.h"
 #include "gripper.h"
 #include "hal.h"
 #include "homing.h"
 #include "soft_limits.h"
 #include "planner.h"
+#include "protocol.h"
 #include "queue.h"
 #include "report.h"
 #include "safety.h"
@@ -32,12 +32,13 @@ static uint8_t rest_allowed(uint8_t fault_ok) {
   return RBX1_BUSY;
 }
 
-// HELLO proto_version u8 -> proto_version, fw_major/minor/patch, joints, queue_size, capabilities u16, last_seq.
+// HELLO proto_version u8 -> proto_version, fw_major/minor/patch, joints, queue_size, capabilities u16, last_seq,
+// window. Any state; protocol.cpp has already started a new session (the window) for it.
 static uint8_t cmd_hello(const rbx1_frame *f, uint8_t *out) {
   rbx1_hello_req req;
   rbx1_hello_resp r;
   rbx1_hello_req_unpack(&req, f->payload, f->len);
-  report_hello(&r, req.proto_version, dedup_last_seq());
+  report_hello(&r, req.proto_version, protocol_last_seq());
   return rbx1_hello_resp_pack(&r, out);
 }
 
@@ -112,7 +113,7 @@ static uint8_t cmd_stop(uint8_t *out) {
   return rbx1_stop_resp_pack(&r, out);
 }
 
-// ESTOP — -> —. Any state, never deduplicated: pulses stop at once, ESTOP_COMMAND latches.
+// ESTOP — -> —. Any state, outside the window (never deduplicated): pulses stop at once, ESTOP_COMMAND latches.
 static uint8_t cmd_estop(uint8_t *out) {
   rbx1_estop_resp r;
   safety_estop();

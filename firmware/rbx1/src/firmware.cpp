@@ -1,7 +1,6 @@
 // firmware.cpp - power-up sequence and main loop: link, safety supervision, homing. Motion runs in interrupts.
 #include "firmware.h"
 
-#include "dedup.h"
 #include "hal.h"
 #include "homing.h"
 #include "protocol.h"
@@ -17,7 +16,6 @@ void fw_setup(void) {
   sys_init();
   queue_init();
   st_init();
-  dedup_init();
   homing_init();
   uint16_t info = 0;
   if (!settings_load()) info |= RBX1_FAULT_EEPROM_DEFAULTS;

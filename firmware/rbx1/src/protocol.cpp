@@ -1,14 +1,16 @@
-// protocol.cpp - link handling: decode, NAK, at-most-once, dispatch, respond (PROTOCOL.md).
+// protocol.cpp - link handling: decode, NAK, the window (order, at-most-once), dispatch, respond (PROTOCOL.md).
 #include "protocol.h"
 
 #include "commands.h"
 #include "config.h"
-#include "dedup.h"
 #include "hal.h"
 #include "rbx1_proto.h"
+#include "rbx1_window.h"
 #include "safety.h"
 
 static rbx1_decoder decoder;
+static rbx1_window window;
+static uint8_t hello_last_seq = 0xFF;
 static uint32_t last_byte_ms;
 
 static void send(uint8_t seq, uint8_t type, const uint8_t *payload, uint8_t len) {
@@ -27,36 +29,44 @@ static void send_nak(uint8_t seq, uint8_t reason) {
 static void on_frame(void *ctx, const rbx1_frame *f) {
   (void)ctx;
   int want = rbx1_request_len(f->type);
-  if (want < 0) {
-    send_nak(f->seq, RBX1_UNKNOWN_TYPE);
-    return;
-  }
-  safety_request_seen();
-  uint8_t type = RBX1_RESPONSE(f->type);
+  if (want >= 0) safety_request_seen();  // any CRC-valid request, a duplicate or a refused one included
   uint8_t out[RBX1_MAX_PAYLOAD];
-  // ESTOP: any CRC-valid frame of its TYPE stops the arm, whatever its payload length (the safe reading of a frame
-  // that is surely an e-stop); executed every time, never recorded, so a retransmitted ESTOP acts again.
-  if (f->type == RBX1_MSG_ESTOP) {
-    send(f->seq, type, out, cmd_execute(f, out));
-    return;
+  const rbx1_window_entry *dup = 0;
+  switch (rbx1_window_accept(&window, f, &dup, &hello_last_seq)) {
+    case RBX1_WIN_BYPASS:
+      // ESTOP: any CRC-valid frame of its TYPE stops the arm, whatever its payload length or SEQ (the safe reading
+      // of a frame that is surely an e-stop); executed every time, never recorded.
+      send(f->seq, RBX1_RESPONSE(f->type), out, cmd_execute(f, out));
+      return;
+    case RBX1_WIN_DUPLICATE:  // answered before: the same answer again, nothing executed
+      send(f->seq, dup->type, dup->payload, dup->len);
+      return;
+    case RBX1_WIN_GAP:  // a request before it is missing: the host resends in order
+      send_nak(f->seq, RBX1_SEQ_GAP);
+      return;
+    case RBX1_WIN_OLD:  // older than the window, or a used SEQ with other bytes: never executed
+      send_nak(f->seq, RBX1_SEQ_OLD);
+      return;
+    default:  // RBX1_WIN_NEW: the next in order (a HELLO has started a new session)
+      break;
   }
-  const uint8_t *cached;
-  uint8_t cached_type, cached_len;
-  if (dedup_lookup(f, &cached_type, &cached, &cached_len)) {
-    send(f->seq, cached_type, cached, cached_len);
-    return;
-  }
-  uint8_t n;
-  if (want != f->len) {
+  uint8_t type, n;
+  if (want < 0) {  // not a request type: NAKed, and remembered so that the order goes on past it
+    type = RBX1_MSG_NAK;
+    out[0] = RBX1_UNKNOWN_TYPE;
+    n = RBX1_NAK_LEN;
+  } else if (want != f->len) {
     // A known type with a wrong payload length: answered, not NAKed (resending the same bytes cannot help),
     // with a full-length response whose status is BAD_LENGTH; nothing is executed.
+    type = RBX1_RESPONSE(f->type);
     n = (uint8_t)rbx1_response_len(f->type);
     for (uint8_t i = 0; i < n; i++) out[i] = 0;
     out[0] = RBX1_BAD_LENGTH;
   } else {
+    type = RBX1_RESPONSE(f->type);
     n = cmd_execute(f, out);
   }
-  dedup_record(f, type, out, n);
+  rbx1_window_record(&window, f->seq, f->crc, type, out, n);
   send(f->seq, type, out, n);
 }
 
@@ -67,8 +77,11 @@ static void on_reject(void *ctx, uint8_t status, uint8_t seq, uint8_t has_seq) {
 
 void protocol_init(void) {
   rbx1_decoder_init(&decoder, on_frame, on_reject, 0);
+  rbx1_window_init(&window);
   last_byte_ms = hal_millis();
 }
+
+uint8_t protocol_last_seq(void) { return hello_last_seq; }
 
 void protocol_poll(void) {
   uint32_t now = hal_millis();

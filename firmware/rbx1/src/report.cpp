@@ -2,6 +2,7 @@
 #include "report.h"
 
 #include "config.h"
+#include "rbx1_window.h"
 #include "hal.h"
 #include "queue.h"
 #include "stepper.h"
@@ -18,6 +19,7 @@ void report_hello(rbx1_hello_resp *r, uint8_t host_version, uint8_t last_seq) {
   r->capabilities = (uint16_t)(RBX1_CAP_GRIPPER | RBX1_CAP_EEPROM_CONFIG | RBX1_CAP_ESTOP_INPUT |
                                RBX1_CAP_LIMIT_SWITCHES | hal_capabilities());
   r->last_seq = last_seq;
+  r->window = RBX1_WINDOW;
 }
 
 void report_status(rbx1_status_resp *r) {

@@ -1,8 +1,9 @@
-"""link.py - a stop-and-wait RBX1 link over a serial port (pyserial): retransmission, SEQ tracking, HELLO."""
+"""link.py - an RBX1 link over a serial port (pyserial): requests one at a time or a stream with a window of them in
+flight (go-back-N retransmission), SEQ tracking, HELLO."""
 import time
 
 from . import frame, messages
-from .messages import MsgType
+from .messages import MsgType, Status
 
 RESPONSE_BIT = 0x80
 SLOW_TYPES = (MsgType.CONFIG_SET, MsgType.CONFIG_RESET)  # they write EEPROM: answered within 1 s (PROTOCOL.md)
@@ -15,10 +16,11 @@ class LinkError(Exception):
 
 
 class Link:
-    """One request outstanding at a time. A request is sent, then retransmitted byte for byte (same SEQ) when no
-    response arrives within `timeout` seconds or a NAK for its SEQ arrives, at most `retries` times."""
+    """request(): one request outstanding; it is retransmitted byte for byte (same SEQ) when no response arrives
+    within `timeout` seconds or a NAK for its SEQ arrives, at most `retries` times. stream(): many requests in order
+    with up to the firmware's window in flight (PROTOCOL.md "Window")."""
 
-    def __init__(self, port, baudrate=115200, timeout=0.1, retries=5):
+    def __init__(self, port, baudrate=115200, timeout=0.1, retries=5, window=None):
         import serial  # pyserial; imported here so framing and messages work without it
         self.ser = serial.Serial()
         self.ser.port = port
@@ -31,6 +33,9 @@ class Link:
         self.retries = retries
         self.seq = 0
         self.retransmissions = 0
+        self.max_window = window  # a cap on the firmware's window (None: the firmware's)
+        self.window = 1           # requests in flight in stream(): min(max_window, HELLO's window)
+        self.baudrate = baudrate
         self.decoder = frame.Decoder()
         self.rejects = 0  # frames from the firmware that failed CRC/length checks
         self.clock = time.monotonic  # the timeout's clock (tests replace it)
@@ -60,11 +65,92 @@ class Link:
         return self._exchange(msg_type, seq, wire)
 
     def hello(self):
-        """HELLO handshake (send it first after connecting or reconnecting): numbering continues from the
-        firmware's last_seq + 1, so no new request can look like a retransmission of its last one."""
+        """HELLO handshake (send it first after connecting or reconnecting): it starts a new session in the
+        firmware's window, and numbering continues after the HELLO's own SEQ."""
         resp = self.request(MsgType.HELLO, proto_version=messages.PROTO_VERSION)
-        self.seq = (resp["last_seq"] + 1) & 0xFF
+        if resp["status"] == Status.OK:
+            fw = max(1, resp["window"])
+            self.window = min(fw, self.max_window) if self.max_window else fw
         return resp
+
+    def stream(self, requests):
+        """Sends [(msg_type, fields), ...] in order with up to self.window in flight and returns their responses (a
+        list of dicts, in order). Go-back-N: when the oldest unanswered request times out, or a NAK names one in
+        flight, every unanswered one is sent again from the oldest, in order; the firmware answers those it had
+        executed from its window. Raises LinkError after `retries` go-backs without progress, or on a NAK that
+        resending cannot cure (UNKNOWN_TYPE, SEQ_OLD)."""
+        frames = []
+        for msg_type, fields in requests:
+            msg_type = MsgType(msg_type)
+            frames.append((msg_type, self.seq, frame.encode(self.seq, msg_type, messages.pack_request(msg_type, **fields))))
+            self.seq = (self.seq + 1) & 0xFF
+        n, win = len(frames), max(1, self.window)
+        results = [None] * n
+        sent_at = [0.0] * n
+        base = nxt = tries = 0
+        quiet_until = 0.0  # NAKs of copies sent before the last go-back are ignored until then
+        while base < n:
+            if nxt < n and nxt - base < win:
+                burst = b"".join(frames[i][2] for i in range(nxt, min(n, base + win)))
+                now = self.clock()
+                for i in range(nxt, min(n, base + win)):
+                    sent_at[i] = now
+                nxt = min(n, base + win)
+                self.ser.write(burst)
+            wait = max(self.timeout, SLOW_TIMEOUT) if frames[base][0] in SLOW_TYPES else self.timeout
+            nak = False
+            for ev in self._read_events(sent_at[base] + wait - self.clock()):
+                if isinstance(ev, frame.Reject):
+                    self.rejects += 1
+                    continue
+                k = (ev.seq - frames[base][1]) & 0xFF
+                if k >= nxt - base:
+                    continue  # not in flight: a late copy of an earlier answer
+                i = base + k
+                if ev.type == MsgType.NAK:
+                    reason = messages.unpack_nak(ev.payload)["reason"] if len(ev.payload) == 1 else None
+                    if results[i] is None and reason in (Status.UNKNOWN_TYPE, Status.SEQ_OLD):
+                        raise LinkError(f"{frames[i][0].name} seq {ev.seq}: NAK {Status(reason).name}")
+                    nak = True
+                elif ev.type == frames[i][0] | RESPONSE_BIT and results[i] is None:
+                    try:
+                        results[i] = messages.unpack_response(frames[i][0], ev.payload)
+                    except ValueError as e:
+                        raise LinkError(f"malformed response {ev.type:#04x} seq {ev.seq}: {e}") from None
+            if results[base] is not None:
+                while base < nxt and results[base] is not None:
+                    base += 1
+                tries = 0
+                continue
+            now = self.clock()
+            if now >= sent_at[base] + wait or (nak and now >= quiet_until):
+                tries += 1
+                if tries > self.retries:
+                    raise LinkError(f"{frames[base][0].name} seq {frames[base][1]}: no response after "
+                                    f"{self.retries} go-backs")
+                again = [i for i in range(base, nxt) if results[i] is None]
+                burst = b"".join(frames[i][2] for i in again)
+                for i in again:
+                    sent_at[i] = now
+                self.retransmissions += len(again)
+                self.ser.write(burst)
+                # the copies still on the line reach the firmware before these: their NAKs are not about these
+                quiet_until = now + 10.0 * len(burst) / self.baudrate + 0.02
+        return results
+
+    def _read_events(self, left):
+        """Frames and Rejects decoded from what arrives within `left` seconds (returns as soon as bytes arrive)."""
+        self.ser.timeout = max(left, 0)
+        data = self.ser.read(1) if left > 0 else b""
+        data += self.ser.read(self.ser.in_waiting)
+        if not data:
+            return []
+        now = self.clock()
+        events = []
+        if self.decoder.pending() and now - self.last_rx > INTER_BYTE_TIMEOUT:
+            events = self.decoder.reset()[1]  # a stale partial frame: rescanned, then dropped
+        self.last_rx = now
+        return events + self.decoder.feed(data)
 
     def _exchange(self, msg_type, seq, wire):
         want = msg_type | RESPONSE_BIT

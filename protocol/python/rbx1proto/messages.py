@@ -3,7 +3,7 @@ protocol/messages.json: do not edit; change messages.json and run protocol/gen.p
 import enum
 import struct
 
-PROTO_VERSION = 2
+PROTO_VERSION = 3
 GLOBAL_JOINT = 0xFF
 
 
@@ -40,6 +40,8 @@ class Status(enum.IntEnum):
     DISABLED = 11
     ESTOP_ACTIVE = 12
     EEPROM_ERROR = 13
+    SEQ_GAP = 14
+    SEQ_OLD = 15
 
 
 STATUS_TEXT = {
@@ -57,6 +59,8 @@ STATUS_TEXT = {
     Status.DISABLED: 'motion while the drivers are disabled',
     Status.ESTOP_ACTIVE: 'CLEAR_FAULT while the e-stop input is asserted',
     Status.EEPROM_ERROR: 'configuration could not be saved',
+    Status.SEQ_GAP: 'SEQ ahead of the next expected one: an earlier request is missing (NAK; resend in order)',
+    Status.SEQ_OLD: 'SEQ older than the window, or a used SEQ with other bytes (NAK; never executed)',
 }
 
 
@@ -146,7 +150,7 @@ REQUEST_FIELDS = {
     MsgType.CONFIG_RESET: (),
 }
 RESPONSE_FIELDS = {
-    MsgType.HELLO: (('status', 'u8', 0), ('proto_version', 'u8', 0), ('fw_major', 'u8', 0), ('fw_minor', 'u8', 0), ('fw_patch', 'u8', 0), ('joints', 'u8', 0), ('queue_size', 'u8', 0), ('capabilities', 'u16', 0), ('last_seq', 'u8', 0)),
+    MsgType.HELLO: (('status', 'u8', 0), ('proto_version', 'u8', 0), ('fw_major', 'u8', 0), ('fw_minor', 'u8', 0), ('fw_patch', 'u8', 0), ('joints', 'u8', 0), ('queue_size', 'u8', 0), ('capabilities', 'u16', 0), ('last_seq', 'u8', 0), ('window', 'u8', 0)),
     MsgType.STATUS: (('status', 'u8', 0), ('state', 'u8', 0), ('faults', 'u16', 0), ('homed', 'u8', 0), ('inputs', 'u8', 0), ('enabled', 'u8', 0), ('queue_free', 'u8', 0), ('moves_done', 'u16', 0), ('gripper_us', 'u16', 0), ('position', 'i32', 6), ('moves_accepted', 'u16', 0), ('moves_flushed', 'u16', 0)),
     MsgType.HEARTBEAT: (('status', 'u8', 0),),
     MsgType.MOVE: (('status', 'u8', 0), ('queue_free', 'u8', 0)),

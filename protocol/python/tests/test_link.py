@@ -1,5 +1,7 @@
-"""test_link.py - Link (pyserial) against a firmware-like peer on a pty: retransmission, NAK, duplicates, LinkError."""
+"""test_link.py - Link (pyserial) against a firmware-like peer on a pty: retransmission, NAK, duplicates, LinkError,
+and streams with a window in flight (go-back-N over drops, lost answers and corrupt bytes)."""
 import os
+import random
 import select
 import threading
 import time
@@ -11,13 +13,15 @@ import serial  # noqa: F401  pyserial (tools/apt-packages.txt): missing is a fai
 from rbx1proto import frame, messages  # noqa: E402
 from rbx1proto.link import Link, LinkError  # noqa: E402
 from rbx1proto.messages import MsgType, Status  # noqa: E402
+from rbx1proto.window import Window  # noqa: E402
 
 TIMEOUT = 0.05
 
 
 class Peer(threading.Thread):
-    """A firmware stand-in written with the Python protocol: at-most-once execution with a cached response, and
-    knobs to drop requests, NAK them, lose or delay responses, or add line noise."""
+    """A firmware stand-in written with the Python protocol: the receiver's window (order, at-most-once execution
+    with remembered answers), and knobs to drop requests, NAK them, lose or delay responses, add line noise, or
+    corrupt received bytes."""
 
     def __init__(self, master):
         super().__init__(daemon=True)
@@ -28,8 +32,11 @@ class Peer(threading.Thread):
         self.received = []      # wire bytes of every valid frame received
         self.executed = []      # types executed (duplicates excluded)
         self.duplicates = 0
-        self.last = None        # (seq, crc) of the last executed request
-        self.cached = None      # its response frame
+        self.window = Window()
+        self.moves = []         # MOVE targets[0] in the order executed
+        self.refused = []       # (seq, reason) of NAKs for gaps and old frames
+        self.corrupt = 0.0      # probability of flipping each received byte
+        self.rng = random.Random(7)
         self.drop = 0           # ignore the next N requests entirely
         self.nak = 0            # answer the next N requests with a NAK instead
         self.lose = 0           # execute the next N requests but lose their responses
@@ -47,6 +54,8 @@ class Peer(threading.Thread):
                 data = os.read(self.master, 512)
             except OSError:
                 return
+            if self.corrupt:
+                data = bytes(b ^ 0x10 if self.rng.random() < self.corrupt else b for b in data)
             with self.lock:
                 for ev in self.decoder.feed(data):
                     if isinstance(ev, frame.Frame):
@@ -66,13 +75,19 @@ class Peer(threading.Thread):
             self.nak -= 1
             self.send(frame.encode(f.seq, MsgType.NAK, messages.pack_nak(Status.BAD_CRC)))
             return
-        if f.type != MsgType.ESTOP and self.last == (f.seq, f.crc):
+        verdict, cached, last = self.window.accept(f)
+        if verdict == "duplicate":
             self.duplicates += 1  # a retransmission: answer again, do not execute again
-            response = self.cached
+            response = cached
+        elif verdict in ("gap", "old"):
+            reason = Status.SEQ_GAP if verdict == "gap" else Status.SEQ_OLD
+            self.refused.append((f.seq, reason))
+            self.send(frame.encode(f.seq, MsgType.NAK, messages.pack_nak(reason)))
+            return
         else:
-            response = frame.encode(f.seq, f.type | 0x80, self.execute(f))
-            if f.type != MsgType.ESTOP:
-                self.last, self.cached = (f.seq, f.crc), response
+            response = frame.encode(f.seq, f.type | 0x80, self.execute(f, last))
+            if verdict == "new":
+                self.window.record(f.seq, f.crc, response)
         if self.lose:
             self.lose -= 1
             return
@@ -82,17 +97,17 @@ class Peer(threading.Thread):
             self.send(frame.encode((f.seq + 100) & 0xFF, MsgType.NAK, messages.pack_nak(Status.BAD_CRC)))
         self.send(self.noise + response)
 
-    def execute(self, f):
+    def execute(self, f, last_seq):
         t = MsgType(f.type)
         self.executed.append(t)
         fields = {name: ([0] * count if count else 0) for name, _, count in messages.RESPONSE_FIELDS[t]}
         if t == MsgType.HELLO:
-            fields.update(proto_version=messages.PROTO_VERSION, joints=6, queue_size=16,
-                          last_seq=self.last[0] if self.last else 255)
+            fields.update(proto_version=messages.PROTO_VERSION, joints=6, queue_size=16, last_seq=last_seq, window=8)
         if t == MsgType.STATUS:
             fields.update(moves_done=self.executed.count(MsgType.MOVE), gripper_us=1000 + f.seq)  # tells SEQs apart
         if t == MsgType.MOVE:
             fields.update(queue_free=15)
+            self.moves.append(messages.unpack_request(t, f.payload)["target"][0])
         return messages.pack_response(t, **fields)
 
 
@@ -190,15 +205,17 @@ def test_link_error_after_retries(pty_pair):
     assert link.seq == 1  # the SEQ is consumed: the next request is a new one
 
 
-def test_hello_continues_from_last_seq(pty_pair):
+def test_hello_starts_a_session_and_reports_the_window(pty_pair):
     link, peer = pty_pair
-    peer.last = (41, 0x1234)  # the firmware's record from an earlier session
+    link.seq = 41
+    link.request(MsgType.HEARTBEAT)  # the firmware's last request of an earlier session: SEQ 41
     link.seq = 200
     r = link.hello()
-    assert r["last_seq"] == 41 and r["proto_version"] == messages.PROTO_VERSION
-    assert link.seq == 42
+    assert r["last_seq"] == 41 and r["proto_version"] == messages.PROTO_VERSION and r["window"] == 8
+    assert link.seq == 201 and link.window == 8
     link.request(MsgType.STATUS)
-    assert frame.Decoder().feed(peer.received[-1])[0].seq == 42
+    assert frame.Decoder().feed(peer.received[-1])[0].seq == 201
+    assert peer.refused == []
 
 
 def test_seq_wraps(pty_pair):
@@ -257,3 +274,66 @@ def test_late_wakeup_reads_waiting_response_without_retransmitting(pty_pair):
     assert link.retransmissions == 0
     time.sleep(0.05)
     assert len(peer.received) == 2 and peer.duplicates == 0
+
+
+def stream_moves(link, n, start=0):
+    return link.stream([(MsgType.MOVE, dict(target=[start + i, 0, 0, 0, 0, 0], duration_ms=0)) for i in range(n)])
+
+
+def test_stream_keeps_the_window_in_flight(pty_pair):
+    link, peer = pty_pair
+    link.hello()
+    rs = stream_moves(link, 40)
+    assert [r["status"] for r in rs] == [Status.OK] * 40
+    assert peer.moves == list(range(40)) and peer.duplicates == 0 and link.retransmissions == 0
+
+
+def test_stream_window_capped_by_the_host(pty_pair):
+    link, peer = pty_pair
+    link.max_window = 3
+    link.hello()
+    assert link.window == 3
+    stream_moves(link, 10)
+    assert peer.moves == list(range(10))
+
+
+def test_stream_goes_back_after_a_dropped_request(pty_pair):
+    link, peer = pty_pair
+    link.hello()
+    stream_moves(link, 5)
+    peer.drop = 1  # the next request vanishes: the ones after it are NAKed SEQ_GAP until it is sent again
+    stream_moves(link, 20, start=5)
+    assert peer.moves == list(range(25)), "executed out of order or twice"
+    assert any(reason == Status.SEQ_GAP for _, reason in peer.refused)
+    assert link.retransmissions > 0
+
+
+def test_stream_lost_answers_are_answered_from_the_window(pty_pair):
+    link, peer = pty_pair
+    link.hello()
+    peer.lose = 3  # the first three are executed but their answers are lost: sent again, answered from memory
+    rs = stream_moves(link, 12)
+    assert [r["status"] for r in rs] == [Status.OK] * 12
+    assert peer.moves == list(range(12)) and peer.duplicates >= 3
+
+
+def test_stream_under_corrupt_bytes_runs_everything_once_in_order(pty_pair):
+    link, peer = pty_pair
+    link.retries = 20
+    link.hello()
+    peer.corrupt = 0.01  # 1 % of the bytes the firmware receives, about one MOVE frame in four
+    rs = stream_moves(link, 200)
+    peer.corrupt = 0.0
+    assert [r["status"] for r in rs] == [Status.OK] * 200
+    assert peer.moves == list(range(200)), "lost, repeated or reordered"
+    assert link.retransmissions > 0
+
+
+def test_stream_nak_seq_old_is_an_error(pty_pair):
+    link, peer = pty_pair
+    link.hello()
+    stream_moves(link, 3)
+    link.seq = (link.seq - 20) & 0xFF  # a host that lost count: its SEQs are the past
+    with pytest.raises(LinkError, match="SEQ_OLD"):
+        stream_moves(link, 2, start=100)
+    assert 100 not in peer.moves

@@ -119,8 +119,10 @@ class Board:
         return seq
 
     def frame(self, msg_type, seq=None, **fields):
-        """(seq, wire bytes) of a request frame, consuming a SEQ unless one is given."""
-        seq = self.next_seq() if seq is None else seq
+        """(seq, wire bytes) of a request frame, consuming the next SEQ unless one is given (an ESTOP takes the next
+        SEQ without consuming it: it has no place in the firmware's order)."""
+        if seq is None:
+            seq = self.link.seq if msg_type == MsgType.ESTOP else self.next_seq()
         return seq, frame.encode(seq, msg_type, messages.pack_request(msg_type, **fields))
 
     def exchange_raw(self, data, until=None, timeout=0.4):

@@ -1,4 +1,5 @@
-"""checks_link.py - handshake, framing, NAKs, resynchronisation after garbage, at-most-once execution."""
+"""checks_link.py - handshake, framing, NAKs, resynchronisation after garbage, the window (order, at-most-once
+execution over the last WINDOW requests, gaps and old frames refused, streams)."""
 import random
 import time
 
@@ -37,6 +38,7 @@ def handshake(b):
     expect(r["joints"] == 6, f"joints {r['joints']}")
     expect(r["queue_size"] >= 2, f"queue_size {r['queue_size']}")
     expect(r["capabilities"] & ~int(sum(Cap)) == 0, f"unknown capability bits {r['capabilities']:#06x}")
+    expect(1 <= r["window"] <= 64, f"window {r['window']}")
     # last_seq is the SEQ of the last executed request, so the host can continue after it.
     seq = b.link.seq
     b.status()
@@ -103,7 +105,8 @@ def wrong_length_response(b):
 @check("corrupt_frame_nak")
 def corrupt_frame_nak(b):
     before = b.status()
-    seq, wire = b.frame(MsgType.MOVE, target=[100] * 6, duration_ms=0)
+    # The next SEQ, not consumed: a frame the firmware rejects takes no place in its order.
+    seq, wire = b.frame(MsgType.MOVE, seq=b.link.seq, target=[100] * 6, duration_ms=0)
     bad = bytearray(wire)
     bad[6] ^= 0x01  # a payload bit: the CRC no longer matches
     ev = b.exchange_raw(bytes(bad), until=lambda e: naks(e))
@@ -118,7 +121,7 @@ def corrupt_frame_nak(b):
 @check("length_over_max_nak")
 def length_over_max_nak(b):
     before = b.status()
-    seq = b.next_seq()
+    seq = b.link.seq  # rejected frames take no place in the order
     ev = b.exchange_raw(bytes([frame.SYNC, frame.MAX_PAYLOAD + 1, seq, MsgType.MOVE]), until=lambda e: naks(e))
     expect([r for _, r in naks(ev)] == [Status.BAD_LENGTH], f"LEN 59: expected NAK BAD_LENGTH, got {ev}")
     unchanged(b, before)
@@ -144,7 +147,7 @@ def garbage_resync(b):
 @check("frame_hidden_in_corrupt_frame")
 def frame_hidden_in_corrupt_frame(b):
     before = b.status()
-    outer_seq = b.next_seq()
+    outer_seq = b.link.seq  # the outer frame is rejected: the hidden one is the next in order
     inner_seq, inner = b.frame(MsgType.STATUS)
     body = bytes([30, outer_seq, MsgType.MOVE]) + inner + bytes(30 - len(inner))
     outer = bytes([frame.SYNC]) + body + b"\x00\x00"  # wrong CRC
@@ -156,7 +159,7 @@ def frame_hidden_in_corrupt_frame(b):
 
 @check("partial_frame_timeout")
 def partial_frame_timeout(b):
-    seq, wire = b.frame(MsgType.STATUS)
+    seq, wire = b.frame(MsgType.STATUS, seq=b.link.seq)  # never completed: takes no place in the order
     b.link.send_raw(wire[:4])
     time.sleep(0.15)  # > 50 ms inter-byte timeout: the partial frame is dropped silently
     seq2, wire2 = b.frame(MsgType.STATUS)
@@ -170,7 +173,7 @@ def partial_frame_rescanned(b):
     # PROTOCOL.md: the inter-byte timeout drops a partial frame's SYNC and rescans the bytes after it, so a whole
     # frame that a truncated one swallowed is still found and answered; the truncated one is never executed.
     before = b.status()
-    _, cut = b.frame(MsgType.MOVE, target=[100] * 6, duration_ms=0)
+    _, cut = b.frame(MsgType.MOVE, seq=b.link.seq, target=[100] * 6, duration_ms=0)
     seq, wire = b.frame(MsgType.STATUS)
     ev = b.exchange_raw(cut[:10] + wire, until=lambda e: responses(e, MsgType.STATUS, seq), timeout=0.5)
     expect(len(responses(ev, MsgType.STATUS, seq)) == 1, f"the swallowed STATUS was not found by the rescan: {ev}")
@@ -194,15 +197,86 @@ def duplicate_not_reexecuted(b):
     expect(s["position"] == target, f"position {s['position']} != {target}")
 
 
-@check("same_seq_new_crc_is_new")
-def same_seq_new_crc_is_new(b):
+@check("same_seq_new_crc_is_refused")
+def same_seq_new_crc_is_refused(b):
+    # A used SEQ with other bytes is not a retransmission and not the next in order: NAK SEQ_OLD, never run.
     before = b.status()
     seq, wire_a = b.frame(MsgType.MOVE, target=[50, 0, 0, 0, 0, 0], duration_ms=0)
     _, wire_b = b.frame(MsgType.MOVE, seq=seq, target=[90, 0, 0, 0, 0, 0], duration_ms=0)
-    for w in (wire_a, wire_b):
-        ev = b.exchange_raw(w, until=lambda e: responses(e, MsgType.MOVE, seq))
-        r = responses(ev, MsgType.MOVE, seq)
-        expect(len(r) == 1 and r[0].payload[0] == Status.OK, f"MOVE not accepted: {ev}")
+    ev = b.exchange_raw(wire_a, until=lambda e: responses(e, MsgType.MOVE, seq))
+    r = responses(ev, MsgType.MOVE, seq)
+    expect(len(r) == 1 and r[0].payload[0] == Status.OK, f"MOVE not accepted: {ev}")
+    ev = b.exchange_raw(wire_b, until=lambda e: naks(e) or responses(e, MsgType.MOVE, seq))
+    expect(naks(ev) == [(seq, Status.SEQ_OLD)], f"expected NAK SEQ_OLD seq {seq}, got {ev}")
     s = b.wait_idle()
-    expect(s["moves_done"] == (before["moves_done"] + 2) & 0xFFFF, f"moves_done {s['moves_done']}: expected +2")
-    expect(s["position"][0] == 90, f"position {s['position']}: the second frame was not executed")
+    expect(s["moves_accepted"] == (before["moves_accepted"] + 1) & 0xFFFF, f"moves_accepted {s['moves_accepted']}: "
+                                                                           f"expected +1")
+    expect(s["position"][0] == 50, f"position {s['position']}: the second frame was executed")
+
+
+def move_frames(b, targets):
+    """(seqs, wire frames) of MOVEs to targets[i] on joint 1, consecutive SEQs (consumed)."""
+    seqs, wires = [], []
+    for x in targets:
+        seq, wire = b.frame(MsgType.MOVE, target=[x, 0, 0, 0, 0, 0], duration_ms=0)
+        seqs.append(seq)
+        wires.append(wire)
+    return seqs, wires
+
+
+@check("window_duplicates_never_rerun")
+def window_duplicates_never_rerun(b):
+    # PROTOCOL.md "Window": a full window of MOVEs back to back, then every one of them again (a go-back): each
+    # duplicate gets its first answer and none runs again. Targets alternate, so a MOVE run twice would leave the
+    # joint elsewhere: the final position and moves_accepted are exact.
+    w = b.info["window"]
+    before = b.status()
+    targets = [40 if i % 2 == 0 else -40 for i in range(w - 1)] + [25]
+    seqs, wires = move_frames(b, targets)
+    ev = b.exchange_raw(b"".join(wires), until=lambda e: all(responses(e, MsgType.MOVE, q) for q in seqs), timeout=2)
+    first = {q: responses(ev, MsgType.MOVE, q) for q in seqs}
+    expect(all(len(r) == 1 and r[0].payload[0] == Status.OK for r in first.values()), f"window of MOVEs: {ev}")
+    ev = b.exchange_raw(b"".join(wires), until=lambda e: all(responses(e, MsgType.MOVE, q) for q in seqs), timeout=2)
+    for q in seqs:
+        again = responses(ev, MsgType.MOVE, q)
+        expect(len(again) == 1 and again[0].payload == first[q][0].payload,
+               f"seq {q}: duplicate not answered with its first answer: {again} vs {first[q]}")
+    expect(not naks(ev), f"duplicates NAKed: {naks(ev)}")
+    # The oldest of them, older than the window once more requests were answered: refused, never run.
+    s = b.wait_idle()
+    ev = b.exchange_raw(wires[0], until=lambda e: naks(e) or responses(e, MsgType.MOVE, seqs[0]))
+    expect(naks(ev) == [(seqs[0], Status.SEQ_OLD)], f"a MOVE older than the window: expected NAK SEQ_OLD, got {ev}")
+    s = b.wait_idle()
+    expect(s["moves_accepted"] == (before["moves_accepted"] + w) & 0xFFFF,
+           f"moves_accepted {before['moves_accepted']} -> {s['moves_accepted']}, expected +{w}")
+    expect(s["moves_done"] == (before["moves_done"] + w) & 0xFFFF, f"moves_done {s['moves_done']}: expected +{w}")
+    expect(s["position"] == [25, 0, 0, 0, 0, 0], f"position {s['position']}: a duplicate ran again")
+
+
+@check("window_gap_refused")
+def window_gap_refused(b):
+    # A request ahead of the next expected SEQ (one before it lost): NAK SEQ_GAP, not run; sent in order, both run.
+    before = b.status()
+    seqs, wires = move_frames(b, [30, 60])
+    ev = b.exchange_raw(wires[1], until=lambda e: naks(e) or responses(e, MsgType.MOVE, seqs[1]))
+    expect(naks(ev) == [(seqs[1], Status.SEQ_GAP)], f"expected NAK SEQ_GAP seq {seqs[1]}, got {ev}")
+    ev = b.exchange_raw(b"".join(wires), until=lambda e: all(responses(e, MsgType.MOVE, q) for q in seqs))
+    expect(all(len(responses(ev, MsgType.MOVE, q)) == 1 for q in seqs), f"in order: {ev}")
+    s = b.wait_idle()
+    expect(s["moves_accepted"] == (before["moves_accepted"] + 2) & 0xFFFF, f"moves_accepted: {brief(s)}")
+    expect(s["position"][0] == 60, f"position {s['position']}")
+
+
+@check("window_stream")
+def window_stream(b):
+    # rbx1proto's Link.stream keeps the window in flight: 3 windows of MOVEs, each answered OK once, run in order.
+    w = b.info["window"]
+    b.link.window = w
+    n = min(3 * w, b.queue_size)
+    before = b.status()
+    rs = b.link.stream([(MsgType.MOVE, dict(target=[10 * (i + 1), -i, 0, 0, 0, i], duration_ms=0)) for i in range(n)])
+    expect([r["status"] for r in rs] == [Status.OK] * n, f"stream answers: {[r['status'] for r in rs]}")
+    s = b.wait_idle()
+    expect(s["moves_accepted"] == (before["moves_accepted"] + n) & 0xFFFF, f"moves_accepted: {brief(s)}")
+    expect(s["moves_done"] == (before["moves_done"] + n) & 0xFFFF, f"moves_done: {brief(s)}")
+    expect(s["position"] == [10 * n, -(n - 1), 0, 0, 0, n - 1], f"position {s['position']}")

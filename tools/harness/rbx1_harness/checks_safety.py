@@ -60,7 +60,7 @@ def estop_any_length_stops(b):
     # PROTOCOL.md: any CRC-valid frame whose TYPE is ESTOP stops the arm, whatever its payload length.
     for n in (1, 3, 58):
         start_long_move(b)
-        seq = b.next_seq()
+        seq = b.link.seq  # outside the window: echoed, not consumed
         ev = b.exchange_raw(frame.encode(seq, MsgType.ESTOP, bytes([0x5A]) * n),
                             until=lambda e: responses(e, MsgType.ESTOP, seq))
         r = responses(ev, MsgType.ESTOP, seq)

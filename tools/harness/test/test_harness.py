@@ -126,7 +126,7 @@ def harness(*args):
 def test_duplicate_check_passes_on_simfw(simfw):
     code, out = harness("--port", simfw.port, "-k", "duplicate", "-k", "handshake", "-k", "wrong_length")
     assert code == 0, out
-    assert out.splitlines()[-1] == "3 passed, 0 failed"
+    assert out.splitlines()[-1] == "4 passed, 0 failed"  # duplicate_not_reexecuted, window_duplicates_never_rerun
 
 
 def test_duplicate_check_catches_reexecution(simfw):
@@ -137,8 +137,9 @@ def test_duplicate_check_catches_reexecution(simfw):
         proxy.close()
     assert code == 1, out
     assert "FAIL  duplicate_not_reexecuted: " in out, out  # a second queue entry shows in its response or moves_done
+    assert "FAIL  window_duplicates_never_rerun: " in out, out  # renumbered duplicates of a window run again
     assert "PASS  move_exact_targets" in out, out  # the proxy is otherwise transparent
-    assert out.splitlines()[-1] == "1 passed, 1 failed"
+    assert out.splitlines()[-1] == "1 passed, 2 failed"
 
 
 def test_wrong_length_check_rejects_a_nak(simfw):

@@ -44,7 +44,7 @@ class OtherVersionFirmware:
                     self.hellos += 1
                     payload = messages.pack_response(
                         MsgType.HELLO, status=Status.BAD_VERSION, proto_version=THEIRS, fw_major=9, fw_minor=0,
-                        fw_patch=0, joints=6, queue_size=16, capabilities=0, last_seq=0)
+                        fw_patch=0, joints=6, queue_size=16, capabilities=0, last_seq=0, window=8)
                     os.write(self.master, frame.encode(f.seq, MsgType.HELLO | 0x80, payload))
 
     def close(self):

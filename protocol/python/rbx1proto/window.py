@@ -1,0 +1,48 @@
+"""window.py - the receiver's window (PROTOCOL.md "Window"), as rbx1_window.c: SEQ order, duplicates answered from
+memory over the last WINDOW requests, gaps and old frames refused. The vectors check both implementations."""
+from .messages import MsgType
+
+WINDOW = 8  # requests a host may keep in flight; the firmware remembers this many (HELLO reports it)
+
+NEW, DUPLICATE, GAP, OLD, BYPASS = "new", "duplicate", "gap", "old", "bypass"
+
+
+class Window:
+    def __init__(self, size=WINDOW):
+        self.size = size
+        self.entries = []  # (seq, crc, answer), oldest first
+        self.expect = 0
+        self.synced = False
+
+    def classify(self, seq, crc):
+        """(verdict, remembered answer or None) for a request by its SEQ and CRC."""
+        for s, c, answer in self.entries:
+            if s == seq and c == crc:
+                return DUPLICATE, answer
+        if not self.synced or seq == self.expect:
+            return NEW, None
+        return (GAP if (seq - self.expect) & 0xFF < 128 else OLD), None
+
+    def accept(self, frame):
+        """(verdict, answer, last_seq): ESTOP bypasses; a HELLO that is not a duplicate starts a new session (last_seq
+        is then the SEQ answered before it, else None); anything else is classified."""
+        if frame.type == MsgType.ESTOP:
+            return BYPASS, None, None
+        verdict, answer = self.classify(frame.seq, frame.crc)
+        if frame.type == MsgType.HELLO and verdict != DUPLICATE:
+            last = self.last_seq()
+            self.restart()
+            return NEW, None, last
+        return verdict, answer, None
+
+    def record(self, seq, crc, answer):
+        self.entries = (self.entries + [(seq, crc, answer)])[-self.size:]
+        self.expect = (seq + 1) & 0xFF
+        self.synced = True
+
+    def restart(self):
+        self.entries = []
+        self.synced = False
+
+    def last_seq(self):
+        return self.entries[-1][0] if self.entries else 0xFF
