@@ -75,9 +75,12 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign,
 // grey table). Neither is an object, nor an obstacle for the fingers.
 // Then two regions of opposite polarity sharing a long boundary (at least 15 % of the smaller one's ring) are
 // one object of two colours (a lighter's pink body and metal cap): merged, its layer on |frame - background|.
+// Either polarity: a small region attached to an object of its own polarity with fringe_ratio times its
+// contrast, at most a quarter of that object's area, is that object's soft shadow (the shade between two sweets
+// on a white table), not an object: a shadow is darker than the table but far lighter than a dark object.
 void drop_fringes(const Contrast& con, const IsolationOptions& opt, Isolation& out) {
-  std::vector<double> level(out.sign.size(), 0);
-  for (const Layer& l : out.layers) level[size_t(l.label)] = l.level;
+  std::vector<double> level(out.sign.size(), 0), area(out.sign.size(), 0);
+  for (const Layer& l : out.layers) level[size_t(l.label)] = l.level, area[size_t(l.label)] = cv::countNonZero(l.inside);
   std::vector<char> drop(out.layers.size(), 0);
   std::vector<std::vector<int>> partner(out.layers.size());
   const cv::Rect frame(0, 0, out.labels.cols, out.labels.rows);
@@ -89,6 +92,7 @@ void drop_fringes(const Contrast& con, const IsolationOptions& opt, Isolation& o
     ring &= ~own;
     int n_ring = 0, n_other = 0;
     double strongest = 0;
+    bool shade = false;  // beside a far stronger, far larger object of its own polarity
     std::map<int, int> shared;  // opposite-polarity label -> ring pixels
     for (int y = 0; y < r.height; ++y) {
       const int* lr = lab.ptr<int>(y);
@@ -97,13 +101,15 @@ void drop_fringes(const Contrast& con, const IsolationOptions& opt, Isolation& o
         if (!rr[x]) continue;
         ++n_ring;
         int o = lr[x];
+        if (o > 0 && o != l.label && out.sign[size_t(o)] == l.sign)
+          shade = shade || (level[size_t(o)] >= opt.fringe_ratio * l.level && area[size_t(l.label)] <= 0.25 * area[size_t(o)]);
         if (o <= 0 || out.sign[size_t(o)] == l.sign) continue;
         ++n_other;
         ++shared[o];
         strongest = std::max(strongest, level[size_t(o)]);
       }
     }
-    drop[i] = n_other >= 0.4 * n_ring || (n_other > 0 && strongest >= opt.fringe_ratio * l.level);
+    drop[i] = n_other >= 0.4 * n_ring || (n_other > 0 && strongest >= opt.fringe_ratio * l.level) || shade;
     for (auto [o, n] : shared)
       if (n >= 0.15 * n_ring) partner[i].push_back(o);
   }
@@ -174,13 +180,28 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
   cv::Mat stats(0, cv::CC_STAT_MAX, CV_32S);
   stats.push_back(cv::Mat(1, cv::CC_STAT_MAX, CV_32S, cv::Scalar(0)));
   long long fg_pixels = 0;
+  // Hysteresis: a region is grown down to the low threshold from pixels above the threshold, so an object
+  // whose contrast dips on its relief or a dull side (a worn coin on a textured cloth) stays one region,
+  // while table texture that never reaches the threshold stays out.
+  const double low = std::max(opt.min_contrast / 2, opt.hysteresis * out.threshold);
   for (int sg : signs) {
-    cv::Mat bin = con.above(out.threshold, sg), lab, st, cen;
+    cv::Mat bin = con.above(low, sg), lab, st, cen;
     cv::morphologyEx(bin, bin, cv::MORPH_OPEN, cv::Mat());  // cleaning: isolated noise pixels and hairlines
-    const int on = cv::countNonZero(bin);
+    cv::Mat high = con.above(out.threshold, sg);
+    cv::morphologyEx(high, high, cv::MORPH_OPEN, cv::Mat());
+    const int on = cv::countNonZero(high);  // the foreground at the threshold, cleaned
     if (on == 0) continue;  // nothing of this polarity (the usual case for one of the two)
     fg_pixels += on;
     int n = cv::connectedComponentsWithStats(bin, lab, st, cen, 8, CV_32S);
+    std::vector<uint8_t> strong(size_t(n), 0);
+    {
+      for (int y = 0; y < high.rows; ++y) {
+        const uchar* hr = high.ptr<uchar>(y);
+        const int* lr = lab.ptr<int>(y);
+        for (int x = 0; x < high.cols; ++x)
+          if (hr[x]) strong[size_t(lr[x])] = 1;
+      }
+    }
     const int offset = int(out.sign.size()) - 1;
     if (offset == 0) {
       out.labels = lab;
@@ -189,6 +210,7 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
       out.labels += lab;
     }
     for (int i = 1; i < n; ++i) {
+      if (!strong[size_t(i)]) st.at<int>(i, cv::CC_STAT_AREA) = 0;  // never reaches the threshold: not an object
       stats.push_back(st.row(i));
       out.sign.push_back(int8_t(sg));
       out.obstacle.push_back(0);
@@ -207,6 +229,7 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
     cv::Rect box(stats.at<int>(i, cv::CC_STAT_LEFT), stats.at<int>(i, cv::CC_STAT_TOP), stats.at<int>(i, cv::CC_STAT_WIDTH),
                  stats.at<int>(i, cv::CC_STAT_HEIGHT));
     int area = stats.at<int>(i, cv::CC_STAT_AREA);
+    if (area == 0) continue;
     if (area < opt.min_area_px) {
       ++out.specks;
       continue;
@@ -269,6 +292,7 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
       }
       continue;
     }
+    std::vector<Layer> pieces;
     for (const auto& p : layer.pieces) {
       if (p.first < opt.min_area_px) continue;
       int id = int(out.obstacle.size());
@@ -282,10 +306,25 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
       Layer piece;
       make_layer(con, out.labels, id, sg, grow(box), out.threshold, piece);
       piece.pieces.clear();
-      if (cv::countNonZero(piece.inside) >= opt.min_area_px) out.layers.push_back(std::move(piece));
+      if (cv::countNonZero(piece.inside) >= opt.min_area_px) pieces.push_back(std::move(piece));
+    }
+    // A piece far fainter and smaller than another piece of its region is that object's soft shadow (the
+    // shade between two sweets joins them at the low threshold), not an object nor an obstacle.
+    std::vector<char> shade(pieces.size(), 0);
+    for (size_t i = 0; i < pieces.size(); ++i)
+      for (const Layer& other : pieces)
+        shade[i] = shade[i] || (other.level >= opt.fringe_ratio * pieces[i].level &&
+                                cv::countNonZero(pieces[i].inside) <= 0.25 * cv::countNonZero(other.inside));
+    for (size_t i = 0; i < pieces.size(); ++i) {
+      if (shade[i]) {
+        ++out.fringes;
+        out.obstacle[size_t(pieces[i].label)] = 0;
+      } else {
+        out.layers.push_back(std::move(pieces[i]));
+      }
     }
   }
-  if (signs.size() == 2) drop_fringes(con, opt, out);
+  drop_fringes(con, opt, out);
   // Detection order: by rows of the top edge, then left to right (split pieces included).
   std::stable_sort(out.layers.begin(), out.layers.end(), [](const Layer& a, const Layer& b) {
     return a.roi.y != b.roi.y ? a.roi.y < b.roi.y : a.roi.x < b.roi.x;

@@ -14,12 +14,14 @@ namespace rbx1::vision {
 struct IsolationOptions {
   double min_contrast = 12;      // grey levels; the threshold is max(this, noise_k * noise sigma)
   double noise_k = 4.5;
+  double hysteresis = 0.5;       // regions grow from the threshold down to this fraction of it (hysteresis)
   int min_area_px = 40;          // smaller regions are specks
   double max_foreground = 0.80;  // a larger foreground fraction means a wrong background or no table in view
   int margin_px = 4;             // ROI margin around each object (covers the blurred edge band)
   bool split_touching = true;    // cut touching objects apart at their necks
   double fringe_ratio = 1.5;     // a region attached to an object of the other polarity with this many times
-                                 // its contrast is that object's shadow or glare, not an object
+                                 // its contrast is that object's shadow or glare, not an object; so is one of
+                                 // its own polarity with at most a quarter of its area (a soft shade)
   SplitOptions split;
 };
 
@@ -30,7 +32,7 @@ struct Isolation {
   std::vector<Layer> layers;      // the kept objects, in detection order (top to bottom, left to right)
   double threshold = 0;
   int specks = 0, border = 0;     // regions dropped
-  int fringes = 0;                // faint regions of the other polarity attached to an object (shadow, glare)
+  int fringes = 0;                // faint regions attached to an object: its shadow, glare or shade
 };
 
 // false + error only for a frame that is nearly all foreground.
