@@ -36,6 +36,7 @@ class Link:
         self.max_window = window  # a cap on the firmware's window (None: the firmware's)
         self.window = 1           # requests in flight in stream(): min(max_window, HELLO's window)
         self.baudrate = baudrate
+        self.resync = False       # a stream failed: its lost SEQs would be gaps, the next stream starts with HELLO
         self.decoder = frame.Decoder()
         self.rejects = 0  # frames from the firmware that failed CRC/length checks
         self.clock = time.monotonic  # the timeout's clock (tests replace it)
@@ -68,6 +69,7 @@ class Link:
         """HELLO handshake (send it first after connecting or reconnecting): it starts a new session in the
         firmware's window, and numbering continues after the HELLO's own SEQ."""
         resp = self.request(MsgType.HELLO, proto_version=messages.PROTO_VERSION)
+        self.resync = False
         if resp["status"] == Status.OK:
             fw = max(1, resp["window"])
             self.window = min(fw, self.max_window) if self.max_window else fw
@@ -79,6 +81,8 @@ class Link:
         flight, every unanswered one is sent again from the oldest, in order; the firmware answers those it had
         executed from its window. Raises LinkError after `retries` go-backs without progress, or on a NAK that
         resending cannot cure (UNKNOWN_TYPE, SEQ_OLD)."""
+        if self.resync:
+            self.hello()
         frames = []
         for msg_type, fields in requests:
             msg_type = MsgType(msg_type)
@@ -98,7 +102,7 @@ class Link:
                 nxt = min(n, base + win)
                 self.ser.write(burst)
             wait = max(self.timeout, SLOW_TIMEOUT) if frames[base][0] in SLOW_TYPES else self.timeout
-            nak = False
+            nak = base_nak = False
             for ev in self._read_events(sent_at[base] + wait - self.clock()):
                 if isinstance(ev, frame.Reject):
                     self.rejects += 1
@@ -110,22 +114,29 @@ class Link:
                 if ev.type == MsgType.NAK:
                     reason = messages.unpack_nak(ev.payload)["reason"] if len(ev.payload) == 1 else None
                     if results[i] is None and reason in (Status.UNKNOWN_TYPE, Status.SEQ_OLD):
+                        self.resync = True
                         raise LinkError(f"{frames[i][0].name} seq {ev.seq}: NAK {Status(reason).name}")
                     nak = True
+                    base_nak = base_nak or i == base
                 elif ev.type == frames[i][0] | RESPONSE_BIT and results[i] is None:
                     try:
                         results[i] = messages.unpack_response(frames[i][0], ev.payload)
                     except ValueError as e:
                         raise LinkError(f"malformed response {ev.type:#04x} seq {ev.seq}: {e}") from None
+                    nak = nak or i > base and results[base] is None  # answers come in order: base's was lost
             if results[base] is not None:
                 while base < nxt and results[base] is not None:
                     base += 1
                 tries = 0
                 continue
             now = self.clock()
-            if now >= sent_at[base] + wait or (nak and now >= quiet_until):
+            # A NAK of the oldest unanswered request is about its latest copy (the copies sent before a go-back
+            # were all after it); other NAKs, and answers overtaking it, may be about copies still on the line
+            # when the last go-back went out.
+            if now >= sent_at[base] + wait or base_nak or (nak and now >= quiet_until):
                 tries += 1
                 if tries > self.retries:
+                    self.resync = True
                     raise LinkError(f"{frames[base][0].name} seq {frames[base][1]}: no response after "
                                     f"{self.retries} go-backs")
                 again = [i for i in range(base, nxt) if results[i] is None]
