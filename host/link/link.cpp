@@ -488,18 +488,25 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
       result = down_error();
       break;
     }
-    bool nak = false;
+    bool nak = false, base_nak = false;
     for (size_t i = base; i < next && !result; ++i) {
+      if (ws[i].done) nak = true;  // answers come in order: one overtaking the oldest means its answer was lost
       if (!ws[i].nak) continue;
       ws[i].nak = false;
       if (ws[i].nak_reason == RBX1_UNKNOWN_TYPE) result = -EOPNOTSUPP;
       if (ws[i].nak_reason == RBX1_SEQ_OLD) result = -EPROTO;
       nak = true;
+      base_nak = base_nak || i == base;
     }
     if (result) break;
     auto now = Clock::now();
     bool timed_out = now >= deadline;
-    if (!timed_out && !(nak && now >= quiet_until)) continue;  // a NAK about a copy sent before the last go-back
+    // A NAK of the oldest unanswered request is about its latest copy (the copies sent before a go-back were all
+    // after it); other NAKs, and answers overtaking it, may be about copies still on the line: after the quiet time.
+    if (!timed_out && !base_nak && !(nak && now >= quiet_until)) {
+      if (nak) state_cv_.wait_until(lock, std::min(deadline, quiet_until), [&] { return ws[base].done || !connected_; });
+      continue;
+    }
     if (timed_out) counters_.timeouts++;
     if (++go_backs > retries_) {
       result = -ETIMEDOUT;
