@@ -6,6 +6,7 @@ import os
 import select
 import termios
 import threading
+import time
 import tty
 
 MESSAGE_START, TOKEN, CMD_PROGRAM_FLASH_ISP = 0x1B, 0x0E, 0x13
@@ -83,6 +84,10 @@ class FlipProxy:
                 data = os.read(self.master, 4096)
                 if self.board is None:
                     self.board = open_resetting(self.board_port)  # avrdude's first bytes: the port "opened"
+                    # Bytes written in the same instant as the reset can reach the application before the reset
+                    # takes effect and be lost; the bootloader listens for 0.83 s, so let it start first (avrdude
+                    # itself waits after its own DTR pulse on a real port).
+                    time.sleep(0.1)
                 self.pending += data
                 os.write(self.board, self._messages())
             if self.board is not None and self.board in ready:

@@ -84,7 +84,7 @@ class BoardRun:
         time.sleep(0.1)  # the board logs the open's reset within a slice of simulated time
         for _ in range(100):
             text = self.events()[since:]
-            if "reset" not in text or re.search(r"reset, in the bootloader.*bootloader left", text, re.S):
+            if "DTR asserted: reset" not in text or re.search(r"reset, in the bootloader.*bootloader left", text, re.S):
                 # A new host starts a session with HELLO (PROTOCOL.md "Window"): a board that was not reset by
                 # this open still remembers the last session's SEQs and would refuse this Link's first ones.
                 link.hello()
