@@ -231,6 +231,26 @@ def request(sock_path, req, timeout=120, on_event=None):
 
 # ---- kinematics (independent of host/arm: the chain of host/arm/kinematics.hpp, written out again) -----------
 
+
+def position(d):
+    """The simulated arm's step position, from the daemon's status."""
+    return d.request({"cmd": "status"})[1]["result"]["firmware"]["position"]
+
+
+def ok(d, req):
+    """(events, result) of a request that must succeed."""
+    events, final = d.request(req)
+    assert "result" in final, (req, final)
+    return events, final["result"]
+
+
+def err(d, req):
+    """The error of a request that must fail."""
+    _, final = d.request(req)
+    assert "error" in final, (req, final)
+    return final["error"]
+
+
 def joint_angles(arm, steps):
     out = []
     for i, s in enumerate(steps):

@@ -9,26 +9,10 @@ import subprocess
 import time
 
 import rbx1e2e as e2e
+from rbx1e2e import err, ok, position
 from conftest import fast_config
 
 J1_STEPS_PER_DEG = 200 * 16 * 10.67 / 360
-
-
-def position(d):
-    _, final = d.request({"cmd": "status"})
-    return final["result"]["firmware"]["position"]
-
-
-def ok(d, req):
-    events, final = d.request(req)
-    assert "result" in final, (req, final)
-    return events, final["result"]
-
-
-def err(d, req):
-    _, final = d.request(req)
-    assert "error" in final, (req, final)
-    return final["error"]
 
 
 def test_jog_moves_exact_steps_and_refuses_beyond_limits(sim, daemon_factory, tmp_path):

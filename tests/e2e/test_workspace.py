@@ -13,6 +13,7 @@ import sys
 import cv2
 
 import rbx1e2e as e2e
+from rbx1e2e import err, ok, position
 from conftest import fast_config
 
 sys.path.insert(0, str(e2e.ROOT / "tools" / "markersim"))
@@ -27,22 +28,6 @@ OBJECT = markersim.rectangle(295.0, 0.0, 40.0, 16.0, 60.0)
 TRUE_CAMERA = markersim.Camera((298.0, -2.5, 504.0), rot_deg=(0.8, -0.6, 1.5), focal_px=2000.0)
 FIT_TOL_MM = 1.0
 PICK_TOL_MM = 1.0
-
-
-def position(d):
-    return d.request({"cmd": "status"})[1]["result"]["firmware"]["position"]
-
-
-def ok(d, req):
-    events, final = d.request(req)
-    assert "result" in final, (req, final)
-    return events, final["result"]
-
-
-def err(d, req):
-    _, final = d.request(req)
-    assert "error" in final, (req, final)
-    return final["error"]
 
 
 def calib(d, action, **kw):
