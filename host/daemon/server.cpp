@@ -260,11 +260,23 @@ int Server::open(const std::string& path, unsigned mode, std::string& error) {
     }
     ::unlink(path.c_str());
   }
+  // Bound and listening under a temporary name, then renamed into place: a client never finds the path before
+  // it accepts connections (a connect between bind() and listen() would be refused).
+  std::string tmp = path + ".new";
+  sockaddr_un tmp_addr{};
+  tmp_addr.sun_family = AF_UNIX;
+  if (tmp.size() >= sizeof(tmp_addr.sun_path)) {
+    error = path + ": not a usable Unix socket path (too long)";
+    return -ENAMETOOLONG;
+  }
+  std::memcpy(tmp_addr.sun_path, tmp.c_str(), tmp.size() + 1);
+  ::unlink(tmp.c_str());
   listen_fd_ = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
-  if (listen_fd_ < 0 || ::bind(listen_fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) < 0 ||
-      ::chmod(path.c_str(), mode) < 0 || ::listen(listen_fd_, 128) < 0) {
+  if (listen_fd_ < 0 || ::bind(listen_fd_, reinterpret_cast<sockaddr*>(&tmp_addr), sizeof tmp_addr) < 0 ||
+      ::chmod(tmp.c_str(), mode) < 0 || ::listen(listen_fd_, 128) < 0 || ::rename(tmp.c_str(), path.c_str()) < 0) {
     int e = errno;
     error = path + ": " + std::strerror(e);
+    ::unlink(tmp.c_str());
     return -e;
   }
   wake_fd_ = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);

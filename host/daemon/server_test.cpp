@@ -493,3 +493,29 @@ TEST(ClientTest, ConnectErrorNamesThePath) {
   EXPECT_LT(c.connect("/tmp/rbx1-no-such-daemon.sock", error), 0);
   EXPECT_NE(error.find("/tmp/rbx1-no-such-daemon.sock"), std::string::npos);
 }
+
+TEST(Server, ThePathAppearsOnlyOnceItAcceptsConnections) {
+  // A client polling for the socket file (as scripts and the tests do while rbx1d starts) connects the instant
+  // the file exists; it must never be refused. Repeated, because the window it guards against is microseconds.
+  std::string path = "/tmp/rbx1-server-test-appear-" + std::to_string(getpid()) + ".sock";
+  int refused = 0;
+  for (int i = 0; i < 300; ++i) {
+    ::unlink(path.c_str());
+    Server server;
+    std::atomic<bool> opened{false};
+    std::thread opener([&] {
+      std::string error;
+      EXPECT_EQ(server.open(path, 0660, error), 0) << error;
+      opened = true;
+    });
+    struct stat st {};
+    while (::lstat(path.c_str(), &st) != 0 && !opened) {
+    }
+    int fd = connect_raw(path);
+    if (fd < 0) ++refused;
+    else ::close(fd);
+    opener.join();
+  }
+  EXPECT_EQ(refused, 0) << "connections refused on a socket file that had just appeared";
+  ::unlink(path.c_str());
+}
