@@ -553,14 +553,19 @@ bool Machine::plan_pick(const nlohmann::json& detections, const nlohmann::json& 
   return plan_pick_steps(config_.arm, st, object, size, place, steps, info, error);
 }
 
-bool Machine::capture_and_detect(Reply& reply, nlohmann::json& detections, std::string& report) {
-  cv::Mat frame;
+bool Machine::capture(Reply& reply, cv::Mat& frame) {
   int r = camera_->read(frame);
-  int64_t captured_ns = mono_ns();
   if (r < 0 || frame.empty()) {
     reply.error("camera_failed", camera_->describe() + ": capture failed (" + std::to_string(r) + ")");
     return false;
   }
+  return true;
+}
+
+bool Machine::capture_and_detect(Reply& reply, nlohmann::json& detections, std::string& report) {
+  cv::Mat frame;
+  if (!capture(reply, frame)) return false;
+  int64_t captured_ns = mono_ns();
   reply.event("captured", {{"source", camera_->describe()}, {"width", frame.cols}, {"height", frame.rows},
                            {"mono_ns", captured_ns}});
   std::string error;

@@ -71,6 +71,8 @@ class Machine {
   bool plan_pick(const nlohmann::json& detections, const nlohmann::json& object, const std::string& place,
                  std::vector<MotionStep>& steps, nlohmann::json& info, std::string& error);
   // Capture + detect at the scan pose; false after reply.error.
+  // One camera frame, or a camera_failed error on reply (false).
+  bool capture(Reply& reply, cv::Mat& frame);
   bool capture_and_detect(Reply& reply, nlohmann::json& detections, std::string& report);
   // [daemon] verify_pick (pick_check.cpp): after a pick, a scan must no longer show the object where it was;
   // else pick_failed and, up to pick_retries times, a new pick from the fresh detection. false after reply.error.

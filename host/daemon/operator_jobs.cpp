@@ -194,10 +194,7 @@ void Machine::job_background(Reply& reply, int frames) {
   std::vector<cv::Mat> shots;
   for (int i = 0; i < frames; ++i) {
     cv::Mat frame;
-    if (int r = camera_->read(frame); r < 0 || frame.empty()) {
-      reply.error("camera_failed", camera_->describe() + ": capture failed (" + std::to_string(r) + ")");
-      return;
-    }
+    if (!capture(reply, frame)) return;
     shots.push_back(frame);
   }
   cv::Mat mean;
@@ -224,10 +221,7 @@ void Machine::job_teach(Reply& reply, const Request& r) {
   if (!ready(reply)) return;
   if (!move_to(reply, "scan_pose", config_.arm.scan)) return;
   cv::Mat frame;
-  if (int rc = camera_->read(frame); rc < 0 || frame.empty()) {
-    reply.error("camera_failed", camera_->describe() + ": capture failed (" + std::to_string(rc) + ")");
-    return;
-  }
+  if (!capture(reply, frame)) return;
   vision::Detection det;
   cv::Mat processed;
   std::string error;

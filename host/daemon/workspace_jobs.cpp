@@ -67,10 +67,7 @@ void Machine::job_calibrate_workspace(Reply& reply, const Request& r) {
     if (!ready(reply)) return;
     if (!move_to(reply, "scan_pose", config_.arm.scan)) return;
     cv::Mat frame;
-    if (int rc = camera_->read(frame); rc < 0 || frame.empty()) {
-      reply.error("camera_failed", camera_->describe() + ": capture failed (" + std::to_string(rc) + ")");
-      return;
-    }
+    if (!capture(reply, frame)) return;
     reply.event("captured", {{"source", camera_->describe()}, {"width", frame.cols}, {"height", frame.rows}});
     // Perception works on the undistorted frame; the markers are found in the same one, so the map fits its pixels.
     std::string error;

@@ -170,6 +170,8 @@ class Daemon:
     def wait_ready(self, timeout=15):
         deadline = time.monotonic() + timeout
         while True:
+            if self.proc.poll() is not None:
+                raise AssertionError(f"rbx1d exited {self.proc.returncode}:\n{self.log_path.read_text()[-3000:]}")
             _, final = self.request({"cmd": "status"})
             if final.get("result", {}).get("ready"):
                 return final["result"]
