@@ -19,9 +19,11 @@ def fast_config(cfg=None):
 @pytest.fixture
 def sim(tmp_path):
     s = e2e.Simfw(tmp_path, "--eeprom", tmp_path / "eeprom.bin")
-    e2e.configure_fast_firmware(s.port)
-    yield s
-    s.stop()
+    try:
+        e2e.configure_fast_firmware(s.port)
+        yield s
+    finally:
+        s.stop()
 
 
 @pytest.fixture

@@ -114,7 +114,8 @@ class Simfw:
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=self.stderr, text=True)
         self.port = self.proc.stdout.readline().strip()
         if not self.port:
-            raise AssertionError(f"{exe} printed no pty path (exit {self.proc.poll()})")
+            self.stop()
+            raise AssertionError(f"{exe} printed no pty path (exit {self.proc.returncode})")
 
     def control(self, command):
         fd = os.open(self.fifo, os.O_WRONLY | os.O_NONBLOCK)
@@ -157,15 +158,22 @@ class Daemon:
         self.log = open(self.log_path, "w")
         self.proc = subprocess.Popen([need(BIN / "rbx1d"), "--config", str(self.config), "--port", str(port),
                                       *extra_args], stdout=self.log, stderr=subprocess.STDOUT)
-        deadline = time.monotonic() + 10
-        while not os.path.exists(self.socket):
-            if self.proc.poll() is not None:
-                raise AssertionError(f"rbx1d exited {self.proc.returncode}:\n{self.log_path.read_text()}")
-            if time.monotonic() > deadline:
-                raise AssertionError("rbx1d did not create its socket")
-            time.sleep(0.02)
-        if wait_ready:
-            self.wait_ready()
+        try:
+            deadline = time.monotonic() + 10
+            while not os.path.exists(self.socket):
+                if self.proc.poll() is not None:
+                    raise AssertionError(f"rbx1d exited {self.proc.returncode}:\n{self.log_path.read_text()}")
+                if time.monotonic() > deadline:
+                    raise AssertionError("rbx1d did not create its socket")
+                time.sleep(0.02)
+            if wait_ready:
+                self.wait_ready()
+        except BaseException:
+            # Never leave it running: an orphaned daemon whose simulator goes away reopens the pty's name every
+            # 50 ms, and a later test's fresh pty may get that name (CI failures: "in use by another program",
+            # bytes stolen from the test's own link).
+            self.stop()
+            raise
 
     def wait_ready(self, timeout=15):
         deadline = time.monotonic() + timeout

@@ -46,6 +46,7 @@ class World:
         self.camera = self.proc.stdout.readline().strip()
         self.port = self.proc.stdout.readline().strip()
         if not self.camera.startswith("unix:") or not self.port:
+            self.stop()
             raise AssertionError(f"rbx1-world printed {self.camera!r}, {self.port!r} (exit {self.proc.poll()})")
         self.time_scale = time_scale
 
@@ -137,22 +138,9 @@ class Cell:
             cfg = daemon_config(tmp, scene_path, self.scene, self.world.camera)
             if annotate:
                 cfg["daemon"]["annotate"] = str(annotate)
-            self.daemon = e2e.Daemon(tmp, cfg, self.world.port, wait_ready=False)
+            self.daemon = e2e.Daemon(tmp, cfg, self.world.port)  # stops itself when it does not get ready
         except BaseException:
             self.world.stop()
-            raise
-        try:
-            deadline = time.monotonic() + 20
-            while True:
-                try:
-                    self.daemon.wait_ready()
-                    break
-                except ConnectionRefusedError:  # its socket bound, not yet listening (a loaded machine)
-                    if self.daemon.proc.poll() is not None or time.monotonic() > deadline:
-                        raise
-                    time.sleep(0.1)
-        except BaseException:
-            self.stop()
             raise
 
     def pick(self, label, place):
