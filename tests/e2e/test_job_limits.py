@@ -7,7 +7,7 @@ import time
 
 import rbx1e2e as e2e
 from conftest import fast_config
-from ptyproxy import PtyProxy
+from lineproxy import LineProxy
 
 IDLE, STOPPING = 0, 3
 HEARTBEAT_LOST = 1 << 3
@@ -87,7 +87,7 @@ def test_job_timeout_fails_the_job_and_stops_the_arm(sim, daemon_factory):
 
 
 def test_reconnect_timeout_fails_the_job(tmp_path, sim, daemon_factory):
-    proxy = PtyProxy(sim.port, str(tmp_path / "rbx1-port"))
+    proxy = LineProxy(sim.port, str(tmp_path / "rbx1-port"))
     try:
         cfg = fast_config()
         cfg["daemon"]["reconnect_timeout_s"] = 0.5

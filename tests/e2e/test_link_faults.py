@@ -4,7 +4,7 @@ import threading
 import time
 
 import rbx1e2e as e2e
-from ptyproxy import PtyProxy
+from lineproxy import LineProxy
 
 
 def pick(d, name, on_event=None):
@@ -33,7 +33,7 @@ def test_corrupt_and_dropped_bytes(tmp_path, daemon_factory):
 
 
 def run_with_outage(tmp_path, sim, daemon_factory, step, outage):
-    proxy = PtyProxy(sim.port, str(tmp_path / "rbx1-port"))
+    proxy = LineProxy(sim.port, str(tmp_path / "rbx1-port"))
     try:
         d = daemon_factory(proxy.link_path)
         name = e2e.scene_labels()[0]

@@ -1,5 +1,6 @@
-"""faultproxy.py - the soak's serial line: a byte forwarder between the pty rbx1d opens (through a symlink) and the
-simulated firmware's pty (through its --link symlink), with faults per frame and per direction.
+"""lineproxy.py - a serial line between rbx1d and a simulated board, for the end-to-end tests, the benches and the
+soak: a byte forwarder between the pty rbx1d opens (through a symlink) and the simulated firmware's pty (its path
+or its --link symlink), timestamping each frame, with optional faults per frame and per direction.
 
 Each whole frame crossing the line may be corrupted (one bit of one byte flipped), dropped, duplicated or delayed
 (the line stalls: order is kept), each with its own probability. Bytes that are not a frame (nothing here sends
@@ -29,6 +30,7 @@ class Direction:
         self.buf_at = 0.0
         self.out = []  # (due, bytes), due non-decreasing
         self.counts = {"frames": 0, "corrupted": 0, "dropped": 0, "duplicated": 0, "delayed": 0}
+        self.seen = []  # (monotonic ns, TYPE) of each frame as it arrived, before any fault
 
     def push(self, data, now):
         if not self.buf:
@@ -41,6 +43,7 @@ class Direction:
         delay = 0.0
         if frame:
             self.counts["frames"] += 1
+            self.seen.append((int(now * 1e9), data[3]))
             x = self.rng.random()
             if x < r["corrupt"]:
                 data = bytearray(data)
@@ -99,8 +102,27 @@ class Direction:
         self.out.clear()
 
 
-class FaultProxy:
-    def __init__(self, target_path, link_path, rates, seed):
+def _write_all(fd, data, timeout=1.0):
+    """A line does not lose bytes because the reader is slow: wait for room (a starved reader), up to timeout."""
+    deadline = time.monotonic() + timeout
+    while data:
+        try:
+            data = data[os.write(fd, data):]
+        except BlockingIOError:
+            if time.monotonic() > deadline:
+                return
+            select.select([], [fd], [], 0.01)
+
+
+NO_FAULTS = {"corrupt": 0.0, "drop": 0.0, "duplicate": 0.0, "delay_rate": 0.0, "delay_ms": 0.0}
+
+
+class LineProxy:
+    """rbx1d opens link_path; the proxy forwards to target_path. vanish()/reappear() unplug and replug the host's
+    side, set_cut() is an outage, frames_to_fw the (ns, TYPE) of each frame the host sent."""
+
+    def __init__(self, target_path, link_path, rates=None, seed=1):
+        rates = rates or NO_FAULTS
         self.target_path = target_path
         self.link_path = link_path
         rng = random.Random(seed)
@@ -160,6 +182,11 @@ class FaultProxy:
                 self.to_fw.clear()
                 self.to_host.clear()
 
+    @property
+    def frames_to_fw(self):
+        with self.lock:
+            return list(self.to_fw.seen)
+
     def counts(self):
         with self.lock:
             return {"to_fw": dict(self.to_fw.counts), "to_host": dict(self.to_host.counts)}
@@ -211,12 +238,12 @@ class FaultProxy:
                 up, down, master = self.to_fw.due(now), self.to_host.due(now), self.master
             try:
                 if up and self.target is not None:
-                    os.write(self.target, up)
+                    _write_all(self.target, up)
             except OSError:
                 self._target_gone()
             try:
                 if down and master is not None:
-                    os.write(master, down)
+                    _write_all(master, down)
             except OSError:
                 pass
 
