@@ -197,22 +197,12 @@ class Simfw {
   std::string port_;
 };
 
-// One request through Machine::handle (the in-process request layer), its final line.
-nlohmann::json call(Machine& m, Command c) {
-  Request r;
-  r.command = c;
-  auto q = submit([&m](const Request& req, std::shared_ptr<Reply> reply) { m.handle(req, std::move(reply)); }, r);
-  std::vector<nlohmann::json> events;
-  nlohmann::json final;
-  if (!q->wait_final(events, final, 30000)) return nullptr;
-  return final;
-}
 
 // Waits up to timeout_ms for the status reply's "job" to satisfy pred.
 template <class Pred>
 bool wait_job(Machine& m, Pred pred, int timeout_ms) {
   for (int t = 0; t < timeout_ms; t += 10) {
-    auto st = call(m, Command::Status);
+    auto st = m.call(Command::Status);
     if (st.is_object() && st.contains("result") && pred(st["result"]["job"])) return true;
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
@@ -254,7 +244,7 @@ TEST(DaemonStartButton, PressRunsTheConfiguredPickOnce) {
     ASSERT_EQ(machine.start(error), 0) << error;
     bool ready = false;
     for (int i = 0; i < 200 && !ready; ++i) {
-      auto st = call(machine, Command::Status);
+      auto st = machine.call(Command::Status);
       ready = st.is_object() && st["result"].value("ready", false);
       if (!ready) std::this_thread::sleep_for(std::chrono::milliseconds(25));
     }
@@ -271,10 +261,10 @@ TEST(DaemonStartButton, PressRunsTheConfiguredPickOnce) {
     std::this_thread::sleep_for(std::chrono::milliseconds(40));
     button->inject(true);
     std::this_thread::sleep_for(std::chrono::milliseconds(40));
-    auto st = call(machine, Command::Status);
+    auto st = machine.call(Command::Status);
     EXPECT_EQ(st["result"]["job"], "pick") << st.dump();
     // A client's request meanwhile is refused as busy, as for any job.
-    auto busy = call(machine, Command::Home);
+    auto busy = machine.call(Command::Home);
     EXPECT_EQ(busy["error"]["code"], "busy") << busy.dump();
 
     machine.estop("test");  // end the pick quickly; the worker must not start a queued second one
@@ -320,7 +310,7 @@ TEST(DaemonGpioEstop, EdgeDuringAPickStopsTheArmAndAbortsTheJob) {
   EXPECT_GE(led->writes(), 1) << "the LED was not put in a known state at start";
   bool ready = false;
   for (int i = 0; i < 200 && !ready; ++i) {
-    auto st = call(machine, Command::Status);
+    auto st = machine.call(Command::Status);
     ready = st.is_object() && st["result"].value("ready", false);
     if (!ready) std::this_thread::sleep_for(std::chrono::milliseconds(25));
   }
@@ -363,9 +353,9 @@ TEST(DaemonGpioEstop, EdgeDuringAPickStopsTheArmAndAbortsTheJob) {
 
   // Latched: FAULT with ESTOP_COMMAND, and the arm no longer moves (the idle STATUS refreshes the cache).
   std::this_thread::sleep_for(std::chrono::milliseconds(600));
-  auto st1 = call(machine, Command::Status)["result"];
+  auto st1 = machine.call(Command::Status)["result"];
   std::this_thread::sleep_for(std::chrono::milliseconds(600));
-  auto st2 = call(machine, Command::Status)["result"];
+  auto st2 = machine.call(Command::Status)["result"];
   ASSERT_TRUE(st2["firmware"].is_object()) << st2.dump();
   EXPECT_EQ(st2["firmware"]["state"], "FAULT") << st2.dump();
   auto faults = st2["firmware"]["faults"];
@@ -376,16 +366,16 @@ TEST(DaemonGpioEstop, EdgeDuringAPickStopsTheArmAndAbortsTheJob) {
   EXPECT_EQ(st2["last_estop"], "gpio");
   EXPECT_EQ(st2["ready"], false);
 
-  auto home = call(machine, Command::Home);
+  auto home = machine.call(Command::Home);
   std::string code = home["error"].value("code", "");
   EXPECT_TRUE(code == "fault" || code == "estop") << home.dump();
   line->inject(false);  // released
   std::this_thread::sleep_for(std::chrono::milliseconds(30));
-  auto cleared = call(machine, Command::ClearFault);
+  auto cleared = machine.call(Command::ClearFault);
   EXPECT_EQ(cleared["result"]["cleared"], true) << cleared.dump();
   for (int i = 0; i < 100 && !led->value(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(20));
   EXPECT_TRUE(led->value()) << "the status LED did not come back on after clear_fault";
-  EXPECT_EQ(call(machine, Command::Status)["result"]["ready"], true);
+  EXPECT_EQ(machine.call(Command::Status)["result"]["ready"], true);
   machine.stop();
   EXPECT_FALSE(led->value()) << "the status LED stays lit after the daemon stopped";
 }

@@ -16,21 +16,6 @@
 
 using namespace rbx1;
 
-namespace {
-// One request through Machine::handle (the in-process request layer), its final line.
-nlohmann::json call(daemon::Machine& m, daemon::Command c) {
-  daemon::Request r;
-  r.command = c;
-  auto q = daemon::submit([&m](const daemon::Request& req, std::shared_ptr<daemon::Reply> reply) {
-    m.handle(req, std::move(reply));
-  }, r);
-  std::vector<nlohmann::json> events;
-  nlohmann::json final;
-  if (!q->wait_final(events, final, 30000)) return nullptr;
-  return final;
-}
-}  // namespace
-
 int main(int argc, char** argv) {
   CLI::App app{"rbx1d-latency-probe: e-stop edge -> ESTOP frame, and the bare link round trip"};
   std::string config_file, port;
@@ -75,7 +60,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   for (int i = 0; i < 200; ++i) {
-    auto st = call(machine, daemon::Command::Status);
+    auto st = machine.call(daemon::Command::Status);
     if (st.is_object() && st["result"].value("ready", false)) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
@@ -89,7 +74,7 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_for(std::chrono::milliseconds(30));
     nlohmann::json r;
     for (int k = 0; k < 5; ++k) {  // on a loaded machine the release may not have been seen yet: try again
-      r = call(machine, daemon::Command::ClearFault);
+      r = machine.call(daemon::Command::ClearFault);
       if (r.is_object() && r.contains("result")) break;
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }

@@ -149,6 +149,16 @@ void Machine::estop(const std::string& source) {
 
 // ---- control requests (server thread) --------------------------------------------------------------------
 
+nlohmann::json Machine::call(Command command, int timeout_ms) {
+  Request r;
+  r.command = command;
+  auto q = submit([this](const Request& req, std::shared_ptr<Reply> reply) { handle(req, std::move(reply)); }, r);
+  std::vector<nlohmann::json> events;
+  nlohmann::json final;
+  if (!q->wait_final(events, final, timeout_ms)) return nullptr;
+  return final;
+}
+
 void Machine::handle(const Request& request, std::shared_ptr<Reply> reply) {
   switch (request.command) {
     case Command::Status:

@@ -33,6 +33,8 @@ class Machine {
   int start(std::string& error);
   // The control socket's handler (server thread).
   void handle(const Request& request, std::shared_ptr<Reply> reply);
+  // One request through handle() in-process (tests, the latency probe): its final line, null on timeout.
+  nlohmann::json call(Command command, int timeout_ms = 30000);
   // E-stop from any source ("control", "gpio"): ESTOP on the wire first, then the job is aborted.
   void estop(const std::string& source);
   // The start button was pressed: when idle, queues `pick [daemon] start_pick --place start_place` (its events go

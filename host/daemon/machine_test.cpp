@@ -14,16 +14,6 @@ using namespace rbx1::daemon;
 
 namespace {
 
-// One request through Machine::handle (the in-process request layer), its final line.
-nlohmann::json call(Machine& m, Command c) {
-  Request r;
-  r.command = c;
-  auto q = submit([&m](const Request& req, std::shared_ptr<Reply> reply) { m.handle(req, std::move(reply)); }, r);
-  std::vector<nlohmann::json> events;
-  nlohmann::json final;
-  if (!q->wait_final(events, final, 30000)) return nullptr;
-  return final;
-}
 
 class MachineOnFakePeer : public ::testing::Test {
  protected:
@@ -44,7 +34,7 @@ class MachineOnFakePeer : public ::testing::Test {
       std::string error;
       ASSERT_EQ(machine_->start(error), 0) << error;
       for (int i = 0; i < 100; ++i) {
-        auto st = call(*machine_, Command::Status);
+        auto st = machine_->call(Command::Status);
         if (st.is_object() && st["result"].value("ready", false)) return;
         std::this_thread::sleep_for(std::chrono::milliseconds(20));
       }
@@ -58,7 +48,7 @@ class MachineOnFakePeer : public ::testing::Test {
     if (machine_) machine_->stop();
   }
   // The firmware part of the status reply: what `rbx1 status` shows.
-  nlohmann::json firmware() { return call(*machine_, Command::Status)["result"]["firmware"]; }
+  nlohmann::json firmware() { return machine_->call(Command::Status)["result"]["firmware"]; }
 
   std::unique_ptr<link::test::FakePeer> peer_;
   Config config_;
@@ -78,7 +68,7 @@ TEST_F(MachineOnFakePeer, HomeKeepsTheLastGoodStatusWhenTheLineDiesAfterTheMove)
   // The home move, the STATUS that shows it complete, then nothing: a STATUS after that fails.
   peer_->silence_after_count = 1;
   peer_->silence_after_type = RBX1_MSG_MOVE;
-  auto r = call(*machine_, Command::Home);
+  auto r = machine_->call(Command::Home);
   ASSERT_TRUE(r.contains("result")) << r.dump();
   EXPECT_EQ(peer_->executed(RBX1_MSG_MOVE), 1);
   expect_real_status(firmware());
@@ -88,7 +78,7 @@ TEST_F(MachineOnFakePeer, ClearFaultKeepsTheLastGoodStatusWhenTheLineDiesAfterPr
   // CLEAR_FAULT, then the two STATUS of the preparation (first and final); any STATUS after them fails.
   peer_->silence_after_count = 2;
   peer_->silence_after_type = RBX1_MSG_CLEAR_FAULT;
-  auto r = call(*machine_, Command::ClearFault);
+  auto r = machine_->call(Command::ClearFault);
   ASSERT_TRUE(r.contains("result")) << r.dump();
   expect_real_status(r["result"]["firmware"]);
   expect_real_status(firmware());
