@@ -46,10 +46,11 @@ def move_duration_honoured(b):
     # the tick that starts it, so never sooner than 599 ms of its clock after its frame arrived, and t0 was taken
     # before the frame was sent. A real board's and rbx1-simfw's clocks never lag the wall clock; rbx1-avrsim may
     # fall behind it on a loaded host and catch up, which shortens the wall time by at most that lag
-    # (--clock-slack). The upper bound is the host's, not the firmware's: a loaded machine slows the simulators and
-    # the polling, so it stays generous.
+    # (--clock-slack). The upper bound is the host's, not the firmware's: a loaded machine slows the simulators
+    # (rbx1-avrsim ran a 600 ms move in 1.79 s of wall time at a load of 18 on 2 cores) and the polling, so it only
+    # catches a firmware that ignores duration_ms by far.
     low = 0.599 - b.clock_slack
-    expect(low <= took <= 1.5, f"a 600 ms move took {took:.3f} s (at least {low:.3f} s expected)")
+    expect(low <= took <= 4.0, f"a 600 ms move took {took:.3f} s (0.6 s expected: at least {low:.3f}, at most 4)")
     expect(s["position"][:2] == [100, 50], f"ended at {s['position']}")
 
 
