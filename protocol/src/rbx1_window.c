@@ -29,7 +29,10 @@ uint8_t rbx1_window_accept(rbx1_window *w, const rbx1_frame *f, const rbx1_windo
   uint8_t verdict;
   if (f->type == RBX1_MSG_ESTOP) return RBX1_WIN_BYPASS;
   verdict = rbx1_window_classify(w, f->seq, f->crc, dup);
-  if (f->type == RBX1_MSG_HELLO && verdict != RBX1_WIN_DUPLICATE) {
+  /* A HELLO is a retransmission only while it is the newest request remembered. Once others followed it, the same
+     bytes are a new host's session that starts at the same SEQ (a tool run twice): answering it and the requests
+     after it from memory would acknowledge requests never executed. */
+  if (f->type == RBX1_MSG_HELLO && (verdict != RBX1_WIN_DUPLICATE || *dup != &w->entry[w->newest])) {
     *last_seq = rbx1_window_last_seq(w);
     rbx1_window_restart(w);
     return RBX1_WIN_NEW;

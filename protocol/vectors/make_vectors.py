@@ -234,6 +234,10 @@ def window_vectors():
     add("hello_restarts", "a HELLO that is not a duplicate forgets the window and its SEQ sets the order",
         [(req(5), "new"), (req(6), "new"), (hello(100), "new", None, 6), (req(6), "old"), (hello(100), "duplicate", 2),
          (req(101), "new"), (hello(50), "new", None, 101), (req(51), "new"), (req(30), "old"), (req(53), "gap")])
+    add("hello_of_a_new_host", "a HELLO with the bytes of a remembered one that other requests followed is a new host "
+        "starting at the same SEQ (a tool run twice), not a retransmission: a new session, and its requests run",
+        [(hello(0), "new", None, 255), (req(1), "new"), (hello(0), "new", None, 1), (req(1), "new"),
+         (hello(0), "new", None, 1), (hello(0), "duplicate", 4), (req(1), "new")])
     add("estop_bypasses", "ESTOP (any payload length, any SEQ) is executed every time and takes no place in the order",
         [(req(9), "new"), (req(77, MsgType.ESTOP), "bypass"), (req(10, MsgType.ESTOP), "bypass"),
          (frame.encode(10, MsgType.ESTOP, b"\x01").hex(), "bypass"), (req(10), "new"), (req(10), "duplicate", 4)])

@@ -29,7 +29,10 @@ class Window:
         if frame.type == MsgType.ESTOP:
             return BYPASS, None, None
         verdict, answer = self.classify(frame.seq, frame.crc)
-        if frame.type == MsgType.HELLO and verdict != DUPLICATE:
+        # A HELLO is a retransmission only while it is the newest request remembered; once others followed it, the
+        # same bytes are a new host's session starting at the same SEQ (answering from memory would acknowledge
+        # requests never executed).
+        if frame.type == MsgType.HELLO and (verdict != DUPLICATE or (frame.seq, frame.crc) != self.entries[-1][:2]):
             last = self.last_seq()
             self.restart()
             return NEW, None, last

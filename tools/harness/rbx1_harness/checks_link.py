@@ -214,6 +214,31 @@ def same_seq_new_crc_is_refused(b):
     expect(s["position"][0] == 50, f"position {s['position']}: the second frame was executed")
 
 
+@check("new_host_same_seq_runs")
+def new_host_same_seq_runs(b):
+    # A host that starts its session with the very bytes of an earlier session (a tool run twice: HELLO with the
+    # same SEQ, then the same request, both still in the window) is a new session, not a retransmission: its request
+    # runs. Answered from memory, the MOVE would be acknowledged and never executed.
+    before = b.wait_idle()
+    seq = b.link.seq
+    hello = frame.encode(seq, MsgType.HELLO, messages.pack_request(MsgType.HELLO, proto_version=messages.PROTO_VERSION))
+    mseq = (seq + 1) & 0xFF
+    move = frame.encode(mseq, MsgType.MOVE, messages.pack_request(MsgType.MOVE, target=[70, 0, 0, 0, 0, 0],
+                                                                  duration_ms=0))
+    for session in (1, 2):  # HELLO(seq), MOVE(seq + 1) to 70: byte for byte the same both times
+        ev = b.exchange_raw(hello, until=lambda e: responses(e, MsgType.HELLO, seq))
+        expect(responses(ev, MsgType.HELLO, seq), f"session {session}: HELLO seq {seq}: {ev}")
+        ev = b.exchange_raw(move, until=lambda e: responses(e, MsgType.MOVE, mseq))
+        r = responses(ev, MsgType.MOVE, mseq)
+        expect(len(r) == 1 and r[0].payload[0] == Status.OK, f"session {session}: MOVE seq {mseq}: {ev}")
+    b.link.seq = (seq + 2) & 0xFF
+    s = b.wait_idle()
+    expect(s["moves_accepted"] == (before["moves_accepted"] + 2) & 0xFFFF,
+           f"moves_accepted {before['moves_accepted']} -> {s['moves_accepted']}: the second session's MOVE was "
+           f"answered from the first session's memory and not run")
+    expect(s["position"][0] == 70, f"position {s['position']}")
+
+
 def move_frames(b, targets):
     """(seqs, wire frames) of MOVEs to targets[i] on joint 1, consecutive SEQs (consumed)."""
     seqs, wires = [], []
