@@ -166,10 +166,27 @@ TEST_F(Fw, GarbageIsIgnoredAndAFrameInsideItIsFound) {
 
 TEST_F(Fw, UnknownTypeIsNakedAndWrongLengthAnswered) {
   ready();
-  Reply r = request(0x55, nullptr, 0);
+  // An unknown type (or a NAK, or a response) is NAKed UNKNOWN_TYPE whatever its SEQ (the next one, a gap, the
+  // past) and takes no place in the order: the next request still has the SEQ it used.
+  for (uint8_t type : {uint8_t(0x55), uint8_t(RBX1_MSG_NAK), uint8_t(RBX1_RESPONSE(RBX1_MSG_STATUS))})
+    for (uint8_t seq : {seq_, uint8_t(seq_ + 3), uint8_t(seq_ - 20)}) {
+      Reply r = exchange(encode(seq, type, nullptr, 0));
+      ASSERT_TRUE(r.got);
+      EXPECT_EQ(r.type, RBX1_MSG_NAK);
+      EXPECT_EQ(r.seq, seq);
+      EXPECT_EQ(r.payload[0], RBX1_UNKNOWN_TYPE);
+    }
+  uint8_t status_seq = seq_;
+  Reply r = request(RBX1_MSG_STATUS, nullptr, 0);
   ASSERT_TRUE(r.got);
-  EXPECT_EQ(r.type, RBX1_MSG_NAK);
-  EXPECT_EQ(r.payload[0], RBX1_UNKNOWN_TYPE);
+  EXPECT_EQ(r.type, RBX1_RESPONSE(RBX1_MSG_STATUS));
+  EXPECT_EQ(r.payload[0], RBX1_OK);
+  r = exchange(encode(seq_, 0x55, nullptr, 0));  // HELLO's last_seq names requests, never an unknown type
+  uint8_t v = RBX1_PROTO_VERSION;
+  r = request(RBX1_MSG_HELLO, &v, 1);
+  rbx1_hello_resp h{};
+  ASSERT_EQ(rbx1_hello_resp_unpack(&h, r.payload.data(), (uint8_t)r.payload.size()), RBX1_OK);
+  EXPECT_EQ(h.last_seq, status_seq);
   std::vector<uint8_t> p = move_payload({100, 0, 0, 0, 0, 0});
   r = request(RBX1_MSG_MOVE, p.data(), (uint8_t)(p.size() - 1));
   ASSERT_TRUE(r.got);

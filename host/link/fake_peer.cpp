@@ -94,7 +94,7 @@ void FakePeer::handle(const rbx1_frame& f) {
   if (silence_left_ == 0) return;
   if (nak_next > 0) {
     --nak_next;
-    rbx1_nak nak{RBX1_BAD_CRC};
+    rbx1_nak nak{nak_reason};
     uint8_t p[RBX1_NAK_LEN];
     uint8_t n = rbx1_nak_pack(&nak, p);
     respond(f.seq, RBX1_MSG_NAK, p, n, false);
@@ -114,6 +114,12 @@ void FakePeer::handle(const rbx1_frame& f) {
     respond(f.seq, dup->type, dup->payload, dup->len, corrupt);
     return;
   }
+  if (verdict == RBX1_WIN_UNKNOWN) {  // as the firmware: NAKed, not executed, no place in the order
+    rbx1_nak nak{RBX1_UNKNOWN_TYPE};
+    uint8_t p[RBX1_NAK_LEN];
+    respond(f.seq, RBX1_MSG_NAK, p, rbx1_nak_pack(&nak, p), false);
+    return;
+  }
   if (verdict == RBX1_WIN_GAP || verdict == RBX1_WIN_OLD) {
     ++refused_;
     rbx1_nak nak{verdict == RBX1_WIN_GAP ? uint8_t(RBX1_SEQ_GAP) : uint8_t(RBX1_SEQ_OLD)};
@@ -122,14 +128,6 @@ void FakePeer::handle(const rbx1_frame& f) {
     return;
   }
   if (f.type == RBX1_MSG_HELLO && before_hello != 0xFF) last_seq = before_hello;
-  if (rbx1_request_len(f.type) < 0) {  // as the firmware: an unknown type is NAKed, not executed, remembered
-    rbx1_nak nak{RBX1_UNKNOWN_TYPE};
-    uint8_t p[RBX1_NAK_LEN];
-    uint8_t n = rbx1_nak_pack(&nak, p);
-    rbx1_window_record(&window_, f.seq, f.crc, RBX1_MSG_NAK, p, n);
-    respond(f.seq, RBX1_MSG_NAK, p, n, false);
-    return;
-  }
   if (silence_left_ > 0) --silence_left_;  // counts new requests; a retransmission above is answered again
   uint8_t resp[RBX1_MAX_PAYLOAD];
   uint8_t len = execute(f, resp);

@@ -31,7 +31,8 @@ class FakePeer {
 
   // Knobs.
   std::atomic<int> drop_next{0};       // ignore the next N frames (silence)
-  std::atomic<int> nak_next{0};        // answer the next N frames with NAK BAD_CRC, unexecuted
+  std::atomic<int> nak_next{0};        // answer the next N frames with a NAK, unexecuted ...
+  std::atomic<uint8_t> nak_reason{RBX1_BAD_CRC};  // ... of this reason
   std::atomic<int> corrupt_next{0};    // execute, but send the next N responses with a broken CRC
   std::atomic<bool> duplicate{false};  // send every response twice
   std::atomic<bool> stale_first{false};  // before each response, send one with another SEQ

@@ -343,7 +343,8 @@ int Link::transact(Waiter& w, bool estop, const uint8_t* frame, size_t n, uint8_
       result = down_error();
       break;
     }
-    if (w.nak && w.nak_reason == RBX1_UNKNOWN_TYPE) {
+    // NAK UNKNOWN_TYPE for a request type (a damaged or stale frame: nothing ran) is a plain NAK.
+    if (w.nak && w.nak_reason == RBX1_UNKNOWN_TYPE && rbx1_request_len(w.type) < 0) {
       result = -EOPNOTSUPP;
       break;
     }
@@ -409,6 +410,10 @@ int Link::request_locked(uint8_t type, const uint8_t* payload, uint8_t len, uint
   if (!n) return -EINVAL;
   int r = transact(w, false, frame, n, resp, resp_len);
   if (r == -ETIMEDOUT || r == -EPROTO) resync_ = true;
+  if (r == -EOPNOTSUPP) {  // an unknown type takes no place in the firmware's order: its SEQ is free again
+    std::lock_guard<std::mutex> lock(state_mu_);
+    if (next_seq_ == static_cast<uint8_t>(w.seq + 1)) next_seq_ = w.seq;
+  }
   return r;
 }
 
@@ -493,7 +498,7 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
       if (ws[i].done) nak = true;  // answers come in order: one overtaking the oldest means its answer was lost
       if (!ws[i].nak) continue;
       ws[i].nak = false;
-      if (ws[i].nak_reason == RBX1_UNKNOWN_TYPE) result = -EOPNOTSUPP;
+      if (ws[i].nak_reason == RBX1_UNKNOWN_TYPE && rbx1_request_len(ws[i].type) < 0) result = -EOPNOTSUPP;
       if (ws[i].nak_reason == RBX1_SEQ_OLD) result = -EPROTO;
       nak = true;
       base_nak = base_nak || i == base;
@@ -531,7 +536,8 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
     quiet_until = Clock::now() + std::chrono::microseconds(static_cast<int64_t>(bytes * byte_s * 1e6) + 20000);
   }
   waiting_.clear();
-  if (result == -ETIMEDOUT || result == -EPROTO) resync_ = true;
+  // Unanswered SEQs (after an unknown type: every later one) would be gaps in the firmware's order.
+  if (result == -ETIMEDOUT || result == -EPROTO || result == -EOPNOTSUPP) resync_ = true;
   for (size_t i = 0; i < n; ++i) {
     reqs[i].answered = ws[i].done;
     reqs[i].resp_len = ws[i].len;

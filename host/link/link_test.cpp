@@ -156,15 +156,44 @@ TEST_F(LinkTest, RetransmitsAtOnceOnNak) {
   EXPECT_EQ(delta().timeouts, 0u);
 }
 
-TEST_F(LinkTest, UnknownTypeIsNotRetransmitted) {
+TEST_F(LinkTest, UnknownTypeIsNotRetransmittedAndTakesNoSeq) {
   uint8_t resp[RBX1_MAX_PAYLOAD];
   uint8_t len = 0;
+  uint8_t seq = link.next_seq();
   EXPECT_EQ(link.request(0x33, nullptr, 0, resp, len), -EOPNOTSUPP);
   EXPECT_EQ(delta().naks, 1u);
   EXPECT_EQ(delta().retransmissions, 0u);
   EXPECT_EQ(delta().link_down, 0u);
+  // An unknown type has no place in the firmware's order: its SEQ is the next request's, which runs at once (a
+  // skipped SEQ would be a gap).
+  EXPECT_EQ(link.next_seq(), seq);
   rbx1_status_resp s{};
   EXPECT_EQ(link.status(s), 0);  // the link is fine
+  EXPECT_EQ(delta().retransmissions, 0u);
+  auto rx = with_seq(peer, seq);
+  ASSERT_EQ(rx.size(), 2u);
+  EXPECT_EQ(rx[0].type, 0x33);
+  EXPECT_EQ(rx[1].type, RBX1_MSG_STATUS);
+  EXPECT_EQ(peer.refused(), 0);
+}
+
+TEST_F(LinkTest, NakUnknownTypeOfARequestTypeIsAPlainNak) {
+  // A NAK UNKNOWN_TYPE naming a request type's SEQ (a damaged or stale frame: nothing ran) is sent again.
+  peer.nak_reason = RBX1_UNKNOWN_TYPE;
+  peer.nak_next = 2;
+  rbx1_move_resp r{};
+  ASSERT_EQ(link.move(some_move(7), r), 0);
+  EXPECT_EQ(r.status, RBX1_OK);
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 1);
+  EXPECT_EQ(delta().retransmissions, 2u);
+  peer.nak_next = 2;
+  std::vector<rbx1_move_req> batch;
+  for (int i = 0; i < 10; ++i) batch.push_back(some_move(100 + i));
+  std::vector<rbx1_move_resp> out;
+  std::vector<bool> answered;
+  ASSERT_EQ(link.move_stream(batch, out, answered), 0);
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(out[i].status, RBX1_OK) << i;
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 11);  // each once
 }
 
 TEST_F(LinkTest, CorruptResponseIsRetransmittedNotReExecuted) {

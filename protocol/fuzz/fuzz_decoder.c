@@ -31,7 +31,8 @@ static void window_step(pass *p, const rbx1_frame *f) {
   const rbx1_window_entry *dup = NULL;
   uint8_t last = 0, before_count = p->win.count, before_expect = p->win.expect;
   uint8_t verdict = rbx1_window_accept(&p->win, f, &dup, &last);
-  CHECK(verdict <= RBX1_WIN_BYPASS);
+  CHECK(verdict <= RBX1_WIN_UNKNOWN);
+  CHECK((verdict == RBX1_WIN_UNKNOWN) == (rbx1_request_len(f->type) < 0));
   CHECK(p->win.count <= RBX1_WINDOW);
   if (verdict == RBX1_WIN_DUPLICATE) {
     CHECK(dup != NULL && dup->seq == f->seq && dup->crc == f->crc && dup->len <= RBX1_MAX_RESP_LEN);

@@ -28,6 +28,8 @@ uint8_t rbx1_window_classify(const rbx1_window *w, uint8_t seq, uint16_t crc, co
 uint8_t rbx1_window_accept(rbx1_window *w, const rbx1_frame *f, const rbx1_window_entry **dup, uint8_t *last_seq) {
   uint8_t verdict;
   if (f->type == RBX1_MSG_ESTOP) return RBX1_WIN_BYPASS;
+  /* Not a request: it takes no place in the order, so a host's next request may carry the same SEQ. */
+  if (rbx1_request_len(f->type) < 0) return RBX1_WIN_UNKNOWN;
   verdict = rbx1_window_classify(w, f->seq, f->crc, dup);
   /* A HELLO is a retransmission only while it is the newest request remembered. Once others followed it, the same
      bytes are a new host's session that starts at the same SEQ (a tool run twice): answering it and the requests

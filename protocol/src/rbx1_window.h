@@ -15,7 +15,7 @@ extern "C" {
  * AVR RAM: RBX1_WINDOW * sizeof(rbx1_window_entry) + 4 = 8 * 45 + 4 = 364 bytes. */
 #define RBX1_WINDOW 8
 
-/* One remembered request: its SEQ and CRC, and the frame that answered it (a response, or a NAK UNKNOWN_TYPE). */
+/* One remembered request: its SEQ and CRC, and the response that answered it. */
 typedef struct {
   uint8_t seq;
   uint16_t crc;
@@ -38,7 +38,8 @@ enum {
   RBX1_WIN_DUPLICATE = 1, /* remembered (same SEQ and CRC): send the remembered answer again, execute nothing */
   RBX1_WIN_GAP = 2,       /* SEQ ahead of the next expected one (1..127 ahead): NAK SEQ_GAP, nothing changes */
   RBX1_WIN_OLD = 3,       /* behind it and not remembered: NAK SEQ_OLD, nothing changes */
-  RBX1_WIN_BYPASS = 4     /* ESTOP: executed and answered every time, outside the window */
+  RBX1_WIN_BYPASS = 4,    /* ESTOP: executed and answered every time, outside the window */
+  RBX1_WIN_UNKNOWN = 5    /* not a request type: NAK UNKNOWN_TYPE, nothing changes (no place in the order) */
 };
 
 void rbx1_window_init(rbx1_window *w);
@@ -47,7 +48,8 @@ uint8_t rbx1_window_classify(const rbx1_window *w, uint8_t seq, uint16_t crc, co
 /* Records the answer of a RBX1_WIN_NEW request (the oldest entry is forgotten when full); the next expected SEQ
  * becomes seq + 1. len is clipped to RBX1_MAX_RESP_LEN. */
 void rbx1_window_record(rbx1_window *w, uint8_t seq, uint16_t crc, uint8_t type, const uint8_t *payload, uint8_t len);
-/* The receiver's decision for a CRC-valid frame: ESTOP (any payload) is RBX1_WIN_BYPASS; a HELLO that is not a
+/* The receiver's decision for a CRC-valid frame: ESTOP (any payload) is RBX1_WIN_BYPASS; a TYPE that is not a
+ * request type (unknown ids, NAK, responses), whatever its SEQ, is RBX1_WIN_UNKNOWN; a HELLO that is not a
  * duplicate starts a new session (rbx1_window_restart; *last_seq is then the SEQ answered before it) and is
  * RBX1_WIN_NEW; any other frame is classified. */
 uint8_t rbx1_window_accept(rbx1_window *w, const rbx1_frame *f, const rbx1_window_entry **dup, uint8_t *last_seq);

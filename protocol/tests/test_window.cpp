@@ -17,7 +17,8 @@ const std::map<uint8_t, std::string> kVerdict = {{RBX1_WIN_NEW, "new"},
                                                  {RBX1_WIN_DUPLICATE, "duplicate"},
                                                  {RBX1_WIN_GAP, "gap"},
                                                  {RBX1_WIN_OLD, "old"},
-                                                 {RBX1_WIN_BYPASS, "bypass"}};
+                                                 {RBX1_WIN_BYPASS, "bypass"},
+                                                 {RBX1_WIN_UNKNOWN, "unknown"}};
 
 struct One {
   rbx1_frame f{};

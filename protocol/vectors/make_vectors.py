@@ -243,10 +243,14 @@ def window_vectors():
          (frame.encode(10, MsgType.ESTOP, b"\x01").hex(), "bypass"), (req(10), "new"), (req(10), "duplicate", 4)])
     add("same_seq_other_bytes", "a used SEQ with other bytes is not a retransmission: refused",
         [(move(30, 1), "new"), (move(30, 2), "old"), (move(30, 1), "duplicate", 0)])
-    add("unknown_type_in_order", "a frame of no request type takes its place in the order (answered by NAK "
-        "UNKNOWN_TYPE, remembered)",
-        [(frame.encode(40, 0x33, b"").hex(), "new"), (frame.encode(40, 0x33, b"").hex(), "duplicate", 0),
-         (req(41), "new"), (req(43), "gap")])
+    add("unknown_type_no_place", "a frame of no request type (unknown id, NAK, a response) is NAKed UNKNOWN_TYPE "
+        "whatever its SEQ and takes no place in the order: its SEQ stays the next one, nothing is remembered",
+        [(req(40), "new"), (frame.encode(41, 0x33, b"").hex(), "unknown"), (frame.encode(41, 0x33, b"").hex(), "unknown"),
+         (frame.encode(41, MsgType.NAK, b"\x01").hex(), "unknown"), (frame.encode(41, 0x82, bytes(40)).hex(), "unknown"),
+         (frame.encode(45, 0x33, b"").hex(), "unknown"), (frame.encode(30, 0x33, b"").hex(), "unknown"),
+         (req(41), "new"), (req(41), "duplicate", 7), (frame.encode(42, 0x33, b"").hex(), "unknown"),
+         (req(42), "new"), (hello(90), "new", None, 42), (frame.encode(91, 0x40, b"").hex(), "unknown"),
+         (req(91), "new"), (req(93), "gap")])
     # The Python window agrees (the C test checks the same file).
     from rbx1proto.window import Window
     for v in V:
@@ -282,7 +286,7 @@ def main():
                               "status BAD_LENGTH, except ESTOP, which stops the arm whatever its length)", "vectors": bad_payload_vectors()},
         "crc.json": {"description": "CRC-16/CCITT-FALSE of data (hex)", "vectors": crc_vectors()},
         "window.json": {"description": "requests fed in order to a receiver's window, with the expected verdict "
-                        "(new, duplicate, gap, old, bypass); a new request's answer is recorded as its step index, "
+                        "(new, duplicate, gap, old, bypass, unknown); a new request's answer is recorded as its step index, "
                         "answer_of names the step whose answer a duplicate gets, last_seq what a session-starting "
                         "HELLO reports", "vectors": window_vectors()},
     }

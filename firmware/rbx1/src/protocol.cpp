@@ -47,15 +47,14 @@ static void on_frame(void *ctx, const rbx1_frame *f) {
     case RBX1_WIN_OLD:  // older than the window, or a used SEQ with other bytes: never executed
       send_nak(f->seq, RBX1_SEQ_OLD);
       return;
+    case RBX1_WIN_UNKNOWN:  // not a request type: NAKed, and no place in the order (its SEQ stays free)
+      send_nak(f->seq, RBX1_UNKNOWN_TYPE);
+      return;
     default:  // RBX1_WIN_NEW: the next in order (a HELLO has started a new session)
       break;
   }
   uint8_t type, n;
-  if (want < 0) {  // not a request type: NAKed, and remembered so that the order goes on past it
-    type = RBX1_MSG_NAK;
-    out[0] = RBX1_UNKNOWN_TYPE;
-    n = RBX1_NAK_LEN;
-  } else if (want != f->len) {
+  if (want != f->len) {
     // A known type with a wrong payload length: answered, not NAKed (resending the same bytes cannot help),
     // with a full-length response whose status is BAD_LENGTH; nothing is executed.
     type = RBX1_RESPONSE(f->type);

@@ -79,8 +79,9 @@ class Link:
         """Sends [(msg_type, fields), ...] in order with up to self.window in flight and returns their responses (a
         list of dicts, in order). Go-back-N: when the oldest unanswered request times out, or a NAK names one in
         flight, every unanswered one is sent again from the oldest, in order; the firmware answers those it had
-        executed from its window. Raises LinkError after `retries` go-backs without progress, or on a NAK that
-        resending cannot cure (UNKNOWN_TYPE, SEQ_OLD)."""
+        executed from its window. A NAK UNKNOWN_TYPE counts as any NAK (every type sent here is a request type, so
+        it names a damaged or stale frame; an unknown type takes no place in the firmware's order, nothing ran).
+        Raises LinkError after `retries` go-backs without progress, or on a NAK SEQ_OLD (resending cannot cure it)."""
         if self.resync:
             self.hello()
         frames = []
@@ -113,7 +114,7 @@ class Link:
                 i = base + k
                 if ev.type == MsgType.NAK:
                     reason = messages.unpack_nak(ev.payload)["reason"] if len(ev.payload) == 1 else None
-                    if results[i] is None and reason in (Status.UNKNOWN_TYPE, Status.SEQ_OLD):
+                    if results[i] is None and reason == Status.SEQ_OLD:
                         self.resync = True
                         raise LinkError(f"{frames[i][0].name} seq {ev.seq}: NAK {Status(reason).name}")
                     nak = True

@@ -1,10 +1,10 @@
 """window.py - the receiver's window (PROTOCOL.md "Window"), as rbx1_window.c: SEQ order, duplicates answered from
 memory over the last WINDOW requests, gaps and old frames refused. The vectors check both implementations."""
-from .messages import MsgType
+from .messages import MsgType, request_len
 
 WINDOW = 8  # requests a host may keep in flight; the firmware remembers this many (HELLO reports it)
 
-NEW, DUPLICATE, GAP, OLD, BYPASS = "new", "duplicate", "gap", "old", "bypass"
+NEW, DUPLICATE, GAP, OLD, BYPASS, UNKNOWN = "new", "duplicate", "gap", "old", "bypass", "unknown"
 
 
 class Window:
@@ -24,10 +24,13 @@ class Window:
         return (GAP if (seq - self.expect) & 0xFF < 128 else OLD), None
 
     def accept(self, frame):
-        """(verdict, answer, last_seq): ESTOP bypasses; a HELLO that is not a duplicate starts a new session (last_seq
+        """(verdict, answer, last_seq): ESTOP bypasses; a TYPE of no request (unknown ids, NAK, responses) is UNKNOWN
+        whatever its SEQ (NAK UNKNOWN_TYPE, no place in the order); a HELLO that is not a duplicate starts a new session (last_seq
         is then the SEQ answered before it, else None); anything else is classified."""
         if frame.type == MsgType.ESTOP:
             return BYPASS, None, None
+        if request_len(frame.type) < 0:
+            return UNKNOWN, None, None
         verdict, answer = self.classify(frame.seq, frame.crc)
         # A HELLO is a retransmission only while it is the newest request remembered; once others followed it, the
         # same bytes are a new host's session starting at the same SEQ (answering from memory would acknowledge

@@ -39,6 +39,7 @@ class Peer(threading.Thread):
         self.rng = random.Random(7)
         self.drop = 0           # ignore the next N requests entirely
         self.nak = 0            # answer the next N requests with a NAK instead
+        self.nak_reason = Status.BAD_CRC  # the reason those NAKs give
         self.lose = 0           # execute the next N requests but lose their responses
         self.delay = 0.0        # seconds before each response
         self.noise = b""        # bytes sent before each response
@@ -73,9 +74,12 @@ class Peer(threading.Thread):
             return
         if self.nak:
             self.nak -= 1
-            self.send(frame.encode(f.seq, MsgType.NAK, messages.pack_nak(Status.BAD_CRC)))
+            self.send(frame.encode(f.seq, MsgType.NAK, messages.pack_nak(self.nak_reason)))
             return
         verdict, cached, last = self.window.accept(f)
+        if verdict == "unknown":
+            self.send(frame.encode(f.seq, MsgType.NAK, messages.pack_nak(Status.UNKNOWN_TYPE)))
+            return
         if verdict == "duplicate":
             self.duplicates += 1  # a retransmission: answer again, do not execute again
             response = cached
@@ -337,3 +341,29 @@ def test_stream_nak_seq_old_is_an_error(pty_pair):
     with pytest.raises(LinkError, match="SEQ_OLD"):
         stream_moves(link, 2, start=100)
     assert 100 not in peer.moves
+
+
+def test_stream_nak_unknown_type_of_a_known_type_is_a_plain_nak(pty_pair):
+    # PROTOCOL.md: an unknown type takes no place in the order, so a NAK UNKNOWN_TYPE for a request type the host
+    # sent (a damaged or stale frame) means nothing ran: the stream goes back and every request runs once, in order.
+    link, peer = pty_pair
+    link.hello()
+    peer.nak, peer.nak_reason = 2, Status.UNKNOWN_TYPE
+    rs = stream_moves(link, 10)
+    assert [r["status"] for r in rs] == [Status.OK] * 10
+    assert peer.moves == list(range(10)) and link.retransmissions > 0
+
+
+def test_unknown_type_takes_no_seq(pty_pair):
+    # A frame of an unknown type is NAKed UNKNOWN_TYPE and its SEQ stays the next in order: a request with that SEQ
+    # runs (not a duplicate, not SEQ_OLD), and the HELLO after it reports that request as the last one answered.
+    link, peer = pty_pair
+    link.hello()
+    seq = link.seq
+    link.send_raw(frame.encode(seq, 0x33, b""))
+    link.ser.timeout = 2.0
+    nak = frame.encode(seq, MsgType.NAK, messages.pack_nak(Status.UNKNOWN_TYPE))
+    assert link.ser.read(len(nak)) == nak
+    r = link.request(MsgType.MOVE, **MOVE)
+    assert r["status"] == Status.OK and peer.moves == [100] and link.retransmissions == 0
+    assert link.hello()["last_seq"] == seq

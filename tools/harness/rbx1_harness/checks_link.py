@@ -76,10 +76,21 @@ def status_and_heartbeat(b):
 @check("unknown_type_nak")
 def unknown_type_nak(b):
     before = b.status()
+    # A frame of no request type is NAKed UNKNOWN_TYPE whatever its SEQ and takes no place in the order (PROTOCOL.md
+    # "Window"): the next request keeps the SEQ the unknown ones carried and runs (a used SEQ would be SEQ_OLD).
+    seq = b.link.seq
     for t in (0x33, 0x7F, 0x82):  # unknown, NAK (firmware only), a response type
-        seq = b.next_seq()
-        ev = b.exchange_raw(frame.encode(seq, t, b""), until=lambda e: naks(e))
-        expect(naks(ev) == [(seq, Status.UNKNOWN_TYPE)], f"type {t:#04x}: expected NAK UNKNOWN_TYPE seq {seq}, got {ev}")
+        for s in (seq, (seq + 3) & 0xFF, (seq - 20) & 0xFF):  # the next SEQ, a gap, the past
+            ev = b.exchange_raw(frame.encode(s, t, b""), until=lambda e: naks(e), timeout=2.0)
+            expect(naks(ev) == [(s, Status.UNKNOWN_TYPE)], f"type {t:#04x} seq {s}: expected NAK UNKNOWN_TYPE, got {ev}")
+    ev = b.exchange_raw(frame.encode(seq, MsgType.STATUS, b""),
+                        until=lambda e: naks(e) or responses(e, MsgType.STATUS, seq), timeout=2.0)
+    expect(len(responses(ev, MsgType.STATUS, seq)) == 1 and not naks(ev),
+           f"STATUS with the unknown frames' SEQ {seq}: expected its response, got {ev}")
+    b.link.seq = (seq + 1) & 0xFF
+    b.exchange_raw(frame.encode(b.link.seq, 0x33, b""), until=lambda e: naks(e), timeout=2.0)
+    r = b.ok(MsgType.HELLO, proto_version=messages.PROTO_VERSION)
+    expect(r["last_seq"] == seq, f"HELLO last_seq {r['last_seq']}, expected the STATUS's {seq}")
     unchanged(b, before)
 
 
