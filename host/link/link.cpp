@@ -240,6 +240,19 @@ void Link::port_gone(int err) {
   state_cv_.notify_all();
 }
 
+// A stream's retransmission rule (PROTOCOL.md "Window"), under state_mu_: the firmware answers what it receives in
+// order, so an answer or NAK about one copy of w shows that every unanswered request whose latest copy went out
+// before that copy lost it (the frame or its answer); a NAK about w's latest copy refuses that copy too. The k-th
+// answer or NAK naming w is about its k-th copy or a later one: the earliest it can be about is the one used.
+void Link::attribute(Waiter* w, bool refused) {
+  if (w->txs.empty()) return;  // a single request (transact): its own rule
+  ++w->events;
+  uint32_t copy = w->txs[std::min<size_t>(w->events, w->txs.size()) - 1];
+  if (refused && copy == w->txs.back()) w->resend = true;
+  for (Waiter* o : waiting_)
+    if (o != w && !o->done && !o->txs.empty() && o->txs.back() < copy) o->resend = true;
+}
+
 void Link::on_frame(void* ctx, const rbx1_frame* f) {
   Link* self = static_cast<Link*>(ctx);
   std::unique_lock<std::mutex> lock(self->state_mu_);
@@ -252,6 +265,7 @@ void Link::on_frame(void* ctx, const rbx1_frame* f) {
         w->nak = true;
         w->nak_reason = nak.reason;
         spdlog::debug("{}: NAK {} for seq {}", self->name_, rbx1_status_name(nak.reason), f->seq);
+        if (nak.reason != RBX1_SEQ_OLD) self->attribute(w, true);
       }
     };
     for (Waiter* w : self->waiting_) mark(w);
@@ -265,6 +279,7 @@ void Link::on_frame(void* ctx, const rbx1_frame* f) {
     w->done = true;
     w->len = f->len;
     std::memcpy(w->payload, f->payload, f->len);
+    self->attribute(w, false);
     return true;
   };
   bool ours = take(self->estop_waiting_);
@@ -442,21 +457,25 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
   }
   std::vector<Clock::time_point> sent_at(n);
   std::vector<uint8_t> burst;
+  uint32_t tx = 0;  // copies written, in order (Waiter::txs)
+  // Under state_mu_: the copies get their places in the order before the reader can see an answer to them.
   auto send = [&](const std::vector<size_t>& which, std::unique_lock<std::mutex>& lock) {
     burst.clear();
     for (size_t i : which) burst.insert(burst.end(), frames[i].begin(), frames[i].begin() + sizes[i]);
     auto now = Clock::now();
-    for (size_t i : which) sent_at[i] = now;
+    for (size_t i : which) {
+      sent_at[i] = now;
+      ws[i].txs.push_back(++tx);
+      ws[i].resend = false;
+    }
     lock.unlock();
     int r = write_frame(burst.data(), burst.size());
     lock.lock();
     return r;
   };
-  const double byte_s = 10.0 / (baud_ ? baud_ : 115200);
   std::unique_lock<std::mutex> lock(state_mu_);
   size_t base = 0, next = 0;
-  int go_backs = 0, result = 0;
-  Clock::time_point quiet_until{};
+  int tries = 0, result = 0;
   while (base < n) {
     if (next < n && next - base < win) {  // fill the window
       std::vector<size_t> fresh;
@@ -473,67 +492,56 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
                             ? std::max(timeout_ms_.load(), 1000)
                             : timeout_ms_.load();
     auto deadline = sent_at[base] + std::chrono::milliseconds(wait_ms);
-    auto any_nak = [&] {
+    auto pending = [&] {
       for (size_t i = base; i < next; ++i)
-        if (ws[i].nak) return true;
+        if (!ws[i].done && (ws[i].resend || ws[i].nak)) return true;
       return false;
     };
-    state_cv_.wait_until(lock, deadline, [&] { return ws[base].done || any_nak() || !connected_; });
-    if (ws[base].done) {
-      while (base < next && ws[base].done) {
-        waiting_.erase(std::find(waiting_.begin(), waiting_.end(), &ws[base]));
-        last_done_ = Clock::now();
-        counters_.requests++;
-        ++base;
-      }
-      go_backs = 0;
-      continue;
+    state_cv_.wait_until(lock, deadline, [&] { return ws[base].done || pending() || !connected_; });
+    while (base < next && ws[base].done) {
+      waiting_.erase(std::find(waiting_.begin(), waiting_.end(), &ws[base]));
+      last_done_ = Clock::now();
+      counters_.requests++;
+      ++base;
+      tries = 0;
     }
     if (!connected_) {
       result = down_error();
       break;
     }
-    bool nak = false, base_nak = false;
+    if (base == n) break;
+    // The reader flagged every request an answer or NAK showed to have lost its latest copy (Link::attribute).
+    std::vector<size_t> again;
     for (size_t i = base; i < next && !result; ++i) {
-      if (ws[i].done) nak = true;  // answers come in order: one overtaking the oldest means its answer was lost
-      if (!ws[i].nak) continue;
+      if (ws[i].done) continue;
+      if (ws[i].nak && ws[i].nak_reason == RBX1_SEQ_OLD) result = -EPROTO;
+      if (ws[i].nak && ws[i].nak_reason == RBX1_UNKNOWN_TYPE && rbx1_request_len(ws[i].type) < 0)
+        result = -EOPNOTSUPP;
       ws[i].nak = false;
-      if (ws[i].nak_reason == RBX1_UNKNOWN_TYPE && rbx1_request_len(ws[i].type) < 0) result = -EOPNOTSUPP;
-      if (ws[i].nak_reason == RBX1_SEQ_OLD) result = -EPROTO;
-      nak = true;
-      base_nak = base_nak || i == base;
+      if (ws[i].resend) again.push_back(i);
     }
     if (result) break;
-    auto now = Clock::now();
-    bool timed_out = now >= deadline;
-    // A NAK of the oldest unanswered request is about its latest copy (the copies sent before a go-back were all
-    // after it); other NAKs, and answers overtaking it, may be about copies still on the line: after the quiet time.
-    if (!timed_out && !base_nak && !(nak && now >= quiet_until)) {
-      if (nak) state_cv_.wait_until(lock, std::min(deadline, quiet_until), [&] { return ws[base].done || !connected_; });
-      continue;
+    bool timed_out = again.empty() && Clock::now() >= deadline;
+    if (timed_out) {  // silence: every unanswered request again, oldest first
+      counters_.timeouts++;
+      for (size_t i = base; i < next; ++i)
+        if (!ws[i].done) again.push_back(i);
     }
-    if (timed_out) counters_.timeouts++;
-    if (++go_backs > retries_) {
+    if (again.empty()) continue;
+    if (again.front() == base && ++tries > retries_) {
       result = -ETIMEDOUT;
       counters_.link_down++;
-      spdlog::warn("{}: link down: type 0x{:02x} seq {} unanswered after {} go-backs", name_, ws[base].type,
+      spdlog::warn("{}: link down: type 0x{:02x} seq {} unanswered after {} retransmissions", name_, ws[base].type,
                    ws[base].seq, retries_.load());
       break;
     }
-    // Go back: every unanswered request in flight again, oldest first, the same bytes.
-    std::vector<size_t> again;
-    for (size_t i = base; i < next; ++i)
-      if (!ws[i].done) again.push_back(i);
     counters_.retransmissions += again.size();
-    spdlog::debug("{}: go-back from seq {} ({} frames, {})", name_, ws[base].seq, again.size(),
-                  timed_out ? "timeout" : "NAK");
+    spdlog::debug("{}: resending {} frames from seq {} ({})", name_, again.size(), ws[again.front()].seq,
+                  timed_out ? "timeout" : "lost copies");
     if (int r = send(again, lock); r < 0) {
       result = r;
       break;
     }
-    size_t bytes = 0;
-    for (size_t i : again) bytes += sizes[i];
-    quiet_until = Clock::now() + std::chrono::microseconds(static_cast<int64_t>(bytes * byte_s * 1e6) + 20000);
   }
   waiting_.clear();
   // Unanswered SEQs (after an unknown type: every later one) would be gaps in the firmware's order.

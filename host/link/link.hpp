@@ -138,6 +138,11 @@ class Link {
     uint8_t seq = 0, type = 0;
     bool done = false, nak = false;
     uint8_t nak_reason = 0;
+    // Streams only: each copy's place in the order of the copies written, answers and NAKs naming it, and whether
+    // one showed its latest copy lost (Link::attribute).
+    std::vector<uint32_t> txs;
+    uint32_t events = 0;
+    bool resend = false;
     uint8_t len = 0;
     uint8_t payload[RBX1_MAX_PAYLOAD];
   };
@@ -147,6 +152,7 @@ class Link {
   void detach();                             // stops the reader thread and closes the fd
   void reader_loop(int fd, int wake_fd);
   static void on_frame(void* ctx, const rbx1_frame* frame);
+  void attribute(Waiter* w, bool refused);
   static void on_reject(void* ctx, uint8_t status, uint8_t seq, uint8_t has_seq);
   void port_gone(int err);
   int down_error() const { return gone_error_ ? -gone_error_ : -ENOTCONN; }  // under state_mu_

@@ -254,6 +254,26 @@ TEST_F(LinkTest, StreamLostAnswersComeFromTheWindow) {
   EXPECT_GE(peer.cached_replies(), 2);
 }
 
+TEST_F(LinkTest, StreamResendsOnlyWhatTheAnswersShowLost) {
+  // Answers and NAKs come back in the order of the copies written: a lost answer costs one resend of its request,
+  // a lost request one resend of it and of each follower NAKed SEQ_GAP, nothing more (a timeout would resend all).
+  link.set_timing(2000, 5);  // no timeout in this test, however loaded the machine
+  std::vector<rbx1_move_resp> out;
+  std::vector<bool> answered;
+  peer.corrupt_next = 1;  // the first answer arrives broken
+  ASSERT_EQ(link.move_stream(move_batch(12, 0), out, answered), 0);
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 12);
+  EXPECT_EQ(delta().retransmissions, 1u);
+  EXPECT_EQ(delta().timeouts, 0u);
+  peer.drop_next = 1;  // the next stream's first frame vanishes: its 7 followers in the window are gaps
+  ASSERT_EQ(link.move_stream(move_batch(12, 100), out, answered), 0);
+  for (int i = 0; i < 12; ++i) EXPECT_EQ(out[i].status, RBX1_OK) << i;
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 24);
+  EXPECT_EQ(peer.refused(), 7);
+  EXPECT_EQ(delta().retransmissions, 1u + 8u);  // delta(): since the test began
+  EXPECT_EQ(delta().timeouts, 0u);
+}
+
 TEST_F(LinkTest, StreamLinkDownSaysWhichWereAnswered) {
   link.set_timing(100, 2);
   peer.silence_after_type = RBX1_MSG_MOVE;  // three MOVEs run and are answered, then the line dies

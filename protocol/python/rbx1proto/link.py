@@ -77,11 +77,15 @@ class Link:
 
     def stream(self, requests):
         """Sends [(msg_type, fields), ...] in order with up to self.window in flight and returns their responses (a
-        list of dicts, in order). Go-back-N: when the oldest unanswered request times out, or a NAK names one in
-        flight, every unanswered one is sent again from the oldest, in order; the firmware answers those it had
-        executed from its window. A NAK UNKNOWN_TYPE counts as any NAK (every type sent here is a request type, so
-        it names a damaged or stale frame; an unknown type takes no place in the firmware's order, nothing ran).
-        Raises LinkError after `retries` go-backs without progress, or on a NAK SEQ_OLD (resending cannot cure it)."""
+        list of dicts, in order). Retransmission (PROTOCOL.md "Window"): the firmware answers the frames it receives
+        in order, so an event (an answer, or a NAK BAD_CRC/BAD_LENGTH/SEQ_GAP/UNKNOWN_TYPE) caused by one copy of a
+        request shows that every unanswered request whose latest copy went out before that copy has lost it (the
+        frame or its answer): those are sent again at once, and so is a NAKed request when the NAK is about its
+        latest copy. Each event is attributed to a copy by counting (the k-th event naming a request comes from its
+        k-th copy or a later one), never by timing. When the oldest unanswered request has had no answer for the
+        timeout, every unanswered one is sent again from the oldest (go-back-N). The firmware answers those it had
+        executed from its window. Raises LinkError after `retries` timeouts without progress, or on a NAK SEQ_OLD
+        (resending cannot cure it)."""
         if self.resync:
             self.hello()
         frames = []
@@ -91,19 +95,28 @@ class Link:
             self.seq = (self.seq + 1) & 0xFF
         n, win = len(frames), max(1, self.window)
         results = [None] * n
-        sent_at = [0.0] * n
+        sent_at = [0.0] * n      # the latest copy's time (the timeout)
+        txs = [[] for _ in range(n)]  # every copy's place in the order of all copies written
+        events = [0] * n         # answers and NAKs naming the request (the k-th is about copy k or later)
+        tx = 0
         base = nxt = tries = 0
-        quiet_until = 0.0  # NAKs of copies sent before the last go-back are ignored until then
+
+        def send(which):
+            nonlocal tx
+            now = self.clock()
+            for i in which:
+                tx += 1
+                txs[i].append(tx)
+                sent_at[i] = now
+            self.ser.write(b"".join(frames[i][2] for i in which))
+
         while base < n:
             if nxt < n and nxt - base < win:
-                burst = b"".join(frames[i][2] for i in range(nxt, min(n, base + win)))
-                now = self.clock()
-                for i in range(nxt, min(n, base + win)):
-                    sent_at[i] = now
-                nxt = min(n, base + win)
-                self.ser.write(burst)
+                fresh = list(range(nxt, min(n, base + win)))
+                nxt = fresh[-1] + 1
+                send(fresh)
             wait = max(self.timeout, SLOW_TIMEOUT) if frames[base][0] in SLOW_TYPES else self.timeout
-            nak = base_nak = False
+            again = set()
             for ev in self._read_events(sent_at[base] + wait - self.clock()):
                 if isinstance(ev, frame.Reject):
                     self.rejects += 1
@@ -112,42 +125,47 @@ class Link:
                 if k >= nxt - base:
                     continue  # not in flight: a late copy of an earlier answer
                 i = base + k
+                if ev.type not in (MsgType.NAK, frames[i][0] | RESPONSE_BIT) or results[i] is not None:
+                    continue  # stale: another type with this SEQ, or about a request already answered
+                events[i] += 1
+                copy = txs[i][min(events[i], len(txs[i])) - 1]  # the earliest copy this event can be about
                 if ev.type == MsgType.NAK:
                     reason = messages.unpack_nak(ev.payload)["reason"] if len(ev.payload) == 1 else None
-                    if results[i] is None and reason == Status.SEQ_OLD:
+                    if reason == Status.SEQ_OLD:
                         self.resync = True
                         raise LinkError(f"{frames[i][0].name} seq {ev.seq}: NAK {Status(reason).name}")
-                    nak = True
-                    base_nak = base_nak or i == base
-                elif ev.type == frames[i][0] | RESPONSE_BIT and results[i] is None:
+                    if copy == txs[i][-1]:
+                        again.add(i)  # its latest copy was refused
+                else:
                     try:
                         results[i] = messages.unpack_response(frames[i][0], ev.payload)
                     except ValueError as e:
                         raise LinkError(f"malformed response {ev.type:#04x} seq {ev.seq}: {e}") from None
-                    nak = nak or i > base and results[base] is None  # answers come in order: base's was lost
+                    again.discard(i)
+                # Answers come in frame order: an unanswered request whose latest copy went out before this copy
+                # lost it (the frame, or its answer).
+                for j in range(base, nxt):
+                    if j != i and results[j] is None and txs[j][-1] < copy:
+                        again.add(j)
             if results[base] is not None:
                 while base < nxt and results[base] is not None:
                     base += 1
                 tries = 0
-                continue
-            now = self.clock()
-            # A NAK of the oldest unanswered request is about its latest copy (the copies sent before a go-back
-            # were all after it); other NAKs, and answers overtaking it, may be about copies still on the line
-            # when the last go-back went out.
-            if now >= sent_at[base] + wait or base_nak or (nak and now >= quiet_until):
-                tries += 1
-                if tries > self.retries:
-                    self.resync = True
-                    raise LinkError(f"{frames[base][0].name} seq {frames[base][1]}: no response after "
-                                    f"{self.retries} go-backs")
-                again = [i for i in range(base, nxt) if results[i] is None]
-                burst = b"".join(frames[i][2] for i in again)
-                for i in again:
-                    sent_at[i] = now
+            if base == n:
+                break
+            wait = max(self.timeout, SLOW_TIMEOUT) if frames[base][0] in SLOW_TYPES else self.timeout
+            again = sorted(j for j in again if results[j] is None)
+            if not again and self.clock() >= sent_at[base] + wait:
+                again = [i for i in range(base, nxt) if results[i] is None]  # silence: go back from the oldest
+            if again:
+                if again[0] == base:
+                    tries += 1
+                    if tries > self.retries:
+                        self.resync = True
+                        raise LinkError(f"{frames[base][0].name} seq {frames[base][1]}: no response after "
+                                        f"{self.retries} retransmissions")
                 self.retransmissions += len(again)
-                self.ser.write(burst)
-                # the copies still on the line reach the firmware before these: their NAKs are not about these
-                quiet_until = now + 10.0 * len(burst) / self.baudrate + 0.02
+                send(again)
         return results
 
     def _read_events(self, left):

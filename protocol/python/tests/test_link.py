@@ -367,3 +367,18 @@ def test_unknown_type_takes_no_seq(pty_pair):
     r = link.request(MsgType.MOVE, **MOVE)
     assert r["status"] == Status.OK and peer.moves == [100] and link.retransmissions == 0
     assert link.hello()["last_seq"] == seq
+
+
+def test_stream_resends_only_what_the_answers_show_lost(pty_pair):
+    # Answers and NAKs come back in the order of the copies written: a lost answer costs one resend of its request,
+    # a lost request one resend of it and of each follower NAKed SEQ_GAP, nothing more (a timeout resends all).
+    link, peer = pty_pair
+    link.timeout = 2.0  # no timeout in this test, however loaded the machine
+    link.hello()
+    peer.lose = 1  # the first answer is lost
+    stream_moves(link, 12)
+    assert peer.moves == list(range(12)) and link.retransmissions == 1
+    peer.drop = 1  # the next stream's first frame vanishes: its 7 followers in the window are gaps
+    rs = stream_moves(link, 12, start=12)
+    assert [r["status"] for r in rs] == [Status.OK] * 12
+    assert peer.moves == list(range(24)) and len(peer.refused) == 7 and link.retransmissions == 1 + 8
