@@ -7,6 +7,7 @@
 #include <cmath>
 #include <vector>
 
+#include "config.h"
 #include "fw_fixture.hpp"
 
 namespace rbx1::fwtest {
@@ -74,7 +75,7 @@ double junction_speed(const Target& a, const Target& b, const Target& c, const d
   }
   for (int i = 0; i < 6; i++) {
     double d = std::fabs(da[i] / na - db[i] / nb);
-    if (d > 0) v = std::min({v, std::sqrt(acc[i] / 2) / d, std::sqrt(acc[i] * std::min(na, nb) / d)});
+    if (d > 0) v = std::min({v, std::sqrt(2 * acc[i] * JUNCTION_LAG_STEPS) / d, std::sqrt(acc[i] * std::min(na, nb) / d)});
   }
   return v;
 }
@@ -215,9 +216,36 @@ TEST_F(Lookahead, JoinedMovesKeepTheirDuration) {
   EXPECT_GE((double)(t.back() - t.front()) / kHz, 99 * 0.015);
 }
 
-// A 10 degree corner slows to the junction speed of the rule, not to a stop; a reversal stops.
+// A long move that duration_ms stretched, after a stream that enters it at a corner (the junction would slow it
+// below its cruise n / duration_ms): it starts from rest with its ramps inside and ends within duration_ms of the
+// stream's end, as a joint move alone; joined at the corner its ramp would fall outside duration_ms.
+TEST_F(Lookahead, StretchedMoveAfterACornerKeepsItsDuration) {
+  std::vector<Target> path;
+  for (int k = 1; k <= 10; k++) path.push_back({100 * k, 0, 0, 0, 0, 0});
+  path.push_back({1000 + 600, 1500, 0, 0, 0, 0});  // J2 leads: 1500 steps in 1000 ms, far below MAX_SPEED
+  std::vector<uint16_t> ms(path.size(), 60);
+  ms.back() = 1000;
+  for (size_t k = 0; k < path.size();) {
+    uint8_t st = move(std::vector<int32_t>(path[k].begin(), path[k].end()), ms[k]);
+    if (st == RBX1_OK)
+      k++;
+    else
+      run_ms(1);
+  }
+  run_until_idle();
+  ASSERT_EQ(tr_.done.size(), path.size());
+  EXPECT_EQ(status().position[1], 1500);
+  double last = (double)(tr_.done[10] - tr_.done[9]) / (kHz / 1000);
+  EXPECT_GE(last, 1000 - 1);
+  EXPECT_LE(last, 1000 + 10) << "the stretched move's ramps fell outside its duration_ms";
+  Measured m = measure(tr_, tr_.all().front(), tr_.all().back());
+  expect_within_limits(m, vmax_, acc_);
+}
+
+// A 30 degree corner slows to the junction speed of the rule (J2's jump, the lag bound), not to a stop; a reversal
+// stops.
 TEST_F(Lookahead, CornerSlowsToTheRuleAndReversalStops) {
-  const std::vector<Target> path = {Target{3000, 0, 0, 0, 0, 0}, Target{6000, 529, 0, 0, 0, 0},
+  const std::vector<Target> path = {Target{3000, 0, 0, 0, 0, 0}, Target{6000, 1732, 0, 0, 0, 0},
                                     Target{3000, 0, 0, 0, 0, 0}};
   stream(*this, path, 0);
   ASSERT_EQ(tr_.done.size(), 3u);
@@ -234,6 +262,7 @@ TEST_F(Lookahead, CornerSlowsToTheRuleAndReversalStops) {
     return worst;
   };
   EXPECT_GT(vj, 1.5 * v0);
+  EXPECT_LT(vj, 0.5 * vmax_[0]);  // the corner slows the move
   EXPECT_NEAR(slowest_near(tr_.steps[0][2999].first), vj, 0.1 * vj) << "corner: junction speed " << vj;
   EXPECT_LT(slowest_near(tr_.steps[0][5999].first), 1.02 * v0) << "reversal: at the stop rate";
   for (int j = 0; j < 6; j++) EXPECT_EQ(status().position[j], path.back()[j]);

@@ -23,6 +23,20 @@ VMAX = [2000, 2000, 4000, 4000, 4000, 4000]    # MAX_SPEED per joint, steps/s
 ACCEL = [20000, 20000, 8000, 8000, 8000, 8000]  # ACCEL per joint, steps/s^2
 
 
+def _config(name):
+    """A #define of firmware/rbx1/src/config.h (the single source)."""
+    path = os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", "..", "firmware", "rbx1", "src", "config.h")
+    with open(path) as f:
+        for line in f:
+            p = line.split()
+            if len(p) >= 3 and p[0] == "#define" and p[1] == name:
+                return int(p[2].rstrip("UL"))
+    raise KeyError(f"{name} not in {path}")
+
+
+JUNCTION_LAG_STEPS = _config("JUNCTION_LAG_STEPS")  # the junction rule's jump: sqrt(2 ACCEL lag)
+
+
 def circle(n=500, r=5787.0, turns=1.1):
     """n moves along `turns` of a circle of radius r steps in J1/J2 from 0 (the default: 57..80 dominant steps each,
     40 ms at 2000 steps/s, so that sixteen queued moves keep 0.6 s of motion ahead of a host slowed by the load)."""
@@ -40,7 +54,7 @@ def junction_speed(a, b, c, vmax=VMAX, acc=ACCEL):
     for i in range(6):
         d = abs(da[i] / na - db[i] / nb)
         if d > 0:
-            v = min(v, math.sqrt(acc[i] / 2) / d, math.sqrt(acc[i] * min(na, nb) / d))
+            v = min(v, math.sqrt(2 * acc[i] * JUNCTION_LAG_STEPS) / d, math.sqrt(acc[i] * min(na, nb) / d))
     return v
 
 

@@ -24,6 +24,12 @@
 // A partial frame older than this is dropped (PROTOCOL.md: inter-byte timeout).
 #define FRAME_TIMEOUT_MS 50
 
+// Look-ahead junctions (firmware/README.md, Look-ahead): the velocity jump a joint may make where two moves meet,
+// as the lag (steps) a motor accelerating at its ACCEL builds while it follows the jump: dv <= sqrt(2 ACCEL lag).
+// 4 steps is a quarter of a full step at the RAMPS' 16 microsteps (253 steps/s at the default ACCEL 8000); a start
+// from rest at the stop rate sqrt(ACCEL / 2) lags a quarter of a microstep.
+#define JUNCTION_LAG_STEPS 4
+
 // Homing: at most this many steps are spent backing off a switch before homing fails.
 #define HOMING_BACKOFF_MAX_STEPS 4000L
 // Back-off speed is HOME_SPEED divided by this (slower release gives a repeatable switch point).

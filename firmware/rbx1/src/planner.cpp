@@ -61,17 +61,22 @@ static uint32_t add_sat(uint32_t a, uint32_t b) { return a + b < a ? 0xFFFFFFFFU
 
 // The junction rule (firmware/README.md, Look-ahead): at a junction the dominant rate v is continuous, so joint i
 // changes its velocity by v * d_i, d_i = |u_i - w_i| (u, w: its steps per dominant step in the two moves, signed).
-// Each joint may change by at most its start rate sqrt(ACCEL_i / 2), the jump it already makes when it starts from
-// rest, and by no more than ACCEL_i allows over the shorter move's time n/v (junctions every few steps, as on a
-// curve, then average out within ACCEL): v d_i <= sqrt(ACCEL_i / 2) and v^2 d_i <= ACCEL_i * min(n, n').
+// Each joint may jump by as much as a motor at ACCEL_i follows lagging at most JUNCTION_LAG_STEPS behind (config.h:
+// the jump's lag is dv^2 / (2 ACCEL_i)), and by no more than ACCEL_i allows over the shorter move's time n/v
+// (junctions every few steps, as on a curve, then average out within ACCEL):
+// v d_i <= sqrt(2 ACCEL_i JUNCTION_LAG_STEPS) and v^2 d_i <= ACCEL_i * min(n, n').
 // The junction speed is the largest v within those and both moves' nominal speeds. The moves join when that is at
-// least both stop rates and each move can ramp between its stop rate and it.
-static void junction(plan_block *b, const plan_block *p, float vc) {
+// least both stop rates, each move can ramp between its stop rate and it, and the joints would join at the stop
+// rates with jumps of at most their start rates sqrt(ACCEL_i / 2) (v d_i <= sqrt(ACCEL_i / 2): a reversal or a
+// corner that sharp ends at rest, as a start from rest is the largest jump a joint makes there). A move that
+// duration_ms stretched (plan_move) joins only at its whole cruise rate n / duration_ms.
+static void junction(plan_block *b, const plan_block *p, float vc, uint8_t stretched) {
   b->joins = 0;
   b->max_entry_sq4 = b->stop_sq4;
   if (!p || p->kind != BLOCK_MOVE || p->n == 0 || b->n == 0 || (p->joins & PLAN_NEVER_JOINS)) return;
   float vj = (float)p->vc / (float)PLAN_V_ONE;
   if (vc < vj) vj = vc;
+  float vstart = vj;  // the same with jumps of at most the start rate: whether the moves join at all
   const float pn = (float)p->n, bn = (float)b->n;
   for (uint8_t i = 0; i < RBX1_JOINTS; i++) {
     uint8_t bit = (uint8_t)(1u << i);
@@ -81,14 +86,20 @@ static void junction(plan_block *b, const plan_block *p, float vc) {
     float d = fabsf(u - w);
     if (d * vj > 0.0f) {
       float acc = (float)SETTING(i, RBX1_KEY_ACCEL);
-      float jump = sqrtf(acc * 0.5f), curve = sqrtf(acc * (pn < bn ? pn : bn) / d);
+      float jump = sqrtf(acc * (2.0f * JUNCTION_LAG_STEPS)), curve = sqrtf(acc * (pn < bn ? pn : bn) / d);
+      float start = sqrtf(acc * 0.5f);
       if (jump < d * vj) vj = jump / d;
       if (curve < vj) vj = curve;
+      if (start < d * vstart) vstart = start / d;
     }
   }
+  // A move duration_ms stretched joins only where it keeps its cruise n / duration_ms from the junction on: slowed
+  // there, its ramp would fall outside duration_ms, while from rest it keeps its ramps inside (runs alone).
+  if (stretched && vj < 0.999f * vc) return;
   uint32_t sq = sq4_of(vj);
   uint32_t floor = p->stop_sq4 > b->stop_sq4 ? p->stop_sq4 : b->stop_sq4;
-  if (sq < floor || add_sat(b->stop_sq4, b->span_sq4) < floor || add_sat(p->stop_sq4, p->span_sq4) < floor) return;
+  // A junction that jumps by more than the start rate even at the stop rate (a reversal, a sharp corner) stops.
+  if (sq4_of(vstart) < floor || sq < floor || add_sat(b->stop_sq4, b->span_sq4) < floor || add_sat(p->stop_sq4, p->span_sq4) < floor) return;
   b->joins = PLAN_JOINS;
   b->max_entry_sq4 = sq;
 }
@@ -175,7 +186,7 @@ uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6]
   if (never_joins)
     b->joins = PLAN_NEVER_JOINS;
   else
-    junction(b, prev, vjoin);
+    junction(b, prev, vjoin, stretched);
   return RBX1_OK;
 }
 
