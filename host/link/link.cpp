@@ -265,7 +265,14 @@ void Link::on_frame(void* ctx, const rbx1_frame* f) {
         w->nak = true;
         w->nak_reason = nak.reason;
         spdlog::debug("{}: NAK {} for seq {}", self->name_, rbx1_status_name(nak.reason), f->seq);
-        if (nak.reason != RBX1_SEQ_OLD) self->attribute(w, true);
+        // A BAD_CRC or BAD_LENGTH NAK carries a SEQ read from damaged bytes (it may name another request): only
+        // NAKs of frames whose CRC held count.
+        if (nak.reason == RBX1_SEQ_GAP || nak.reason == RBX1_UNKNOWN_TYPE) {
+          self->attribute(w, true);
+        } else if (!w->txs.empty()) {  // not counted; naming the oldest unanswered request it sends that again
+          auto oldest = std::find_if(self->waiting_.begin(), self->waiting_.end(), [](Waiter* o) { return !o->done; });
+          if (oldest != self->waiting_.end() && *oldest == w) w->resend = true;
+        }
       }
     };
     for (Waiter* w : self->waiting_) mark(w);

@@ -78,8 +78,8 @@ class Link:
     def stream(self, requests):
         """Sends [(msg_type, fields), ...] in order with up to self.window in flight and returns their responses (a
         list of dicts, in order). Retransmission (PROTOCOL.md "Window"): the firmware answers the frames it receives
-        in order, so an event (an answer, or a NAK BAD_CRC/BAD_LENGTH/SEQ_GAP/UNKNOWN_TYPE) caused by one copy of a
-        request shows that every unanswered request whose latest copy went out before that copy has lost it (the
+        in order, so an event (an answer, or a NAK SEQ_GAP/UNKNOWN_TYPE: frames whose CRC held, so their SEQ is the
+        request's; BAD_CRC and BAD_LENGTH NAKs are not counted) caused by one copy of a request shows that every unanswered request whose latest copy went out before that copy has lost it (the
         frame or its answer): those are sent again at once, and so is a NAKed request when the NAK is about its
         latest copy. Each event is attributed to a copy by counting (the k-th event naming a request comes from its
         k-th copy or a later one), never by timing. When the oldest unanswered request has had no answer for the
@@ -127,10 +127,19 @@ class Link:
                 i = base + k
                 if ev.type not in (MsgType.NAK, frames[i][0] | RESPONSE_BIT) or results[i] is not None:
                     continue  # stale: another type with this SEQ, or about a request already answered
+                reason = None
+                if ev.type == MsgType.NAK:
+                    reason = messages.unpack_nak(ev.payload)["reason"] if len(ev.payload) == 1 else None
+                    if reason not in (Status.SEQ_GAP, Status.UNKNOWN_TYPE, Status.SEQ_OLD):
+                        # BAD_CRC, BAD_LENGTH: its SEQ was read from damaged bytes and may name another request, so
+                        # it is not counted; naming the oldest unanswered one it sends that again (at worst a copy
+                        # answered from the firmware's memory).
+                        if i == base:
+                            again.add(i)
+                        continue
                 events[i] += 1
                 copy = txs[i][min(events[i], len(txs[i])) - 1]  # the earliest copy this event can be about
                 if ev.type == MsgType.NAK:
-                    reason = messages.unpack_nak(ev.payload)["reason"] if len(ev.payload) == 1 else None
                     if reason == Status.SEQ_OLD:
                         self.resync = True
                         raise LinkError(f"{frames[i][0].name} seq {ev.seq}: NAK {Status(reason).name}")

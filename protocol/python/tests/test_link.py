@@ -44,6 +44,7 @@ class Peer(threading.Thread):
         self.delay = 0.0        # seconds before each response
         self.noise = b""        # bytes sent before each response
         self.nak_other_seq = False
+        self.nak_next_seq = False
         self.silent = False
 
     def run(self):
@@ -99,6 +100,8 @@ class Peer(threading.Thread):
             time.sleep(self.delay)
         if self.nak_other_seq:
             self.send(frame.encode((f.seq + 100) & 0xFF, MsgType.NAK, messages.pack_nak(Status.BAD_CRC)))
+        if self.nak_next_seq:  # a BAD_CRC NAK whose SEQ byte was damaged into the next request's
+            self.send(frame.encode((f.seq + 1) & 0xFF, MsgType.NAK, messages.pack_nak(Status.BAD_CRC)))
         self.send(self.noise + response)
 
     def execute(self, f, last_seq):
@@ -382,3 +385,16 @@ def test_stream_resends_only_what_the_answers_show_lost(pty_pair):
     rs = stream_moves(link, 12, start=12)
     assert [r["status"] for r in rs] == [Status.OK] * 12
     assert peer.moves == list(range(24)) and len(peer.refused) == 7 and link.retransmissions == 1 + 8
+
+
+def test_stream_bad_crc_naks_naming_other_requests_resend_nothing(pty_pair):
+    # A BAD_CRC NAK's SEQ was read from damaged bytes: one naming a request still in flight (not the oldest) is
+    # neither counted nor acted on (counted, it would make that request's later answers look like its latest
+    # copy's and resend everything written before).
+    link, peer = pty_pair
+    link.timeout = 2.0  # no timeout in this test, however loaded the machine
+    link.hello()
+    peer.nak_next_seq = True
+    rs = stream_moves(link, 30)
+    assert [r["status"] for r in rs] == [Status.OK] * 30
+    assert peer.moves == list(range(30)) and link.retransmissions == 0
