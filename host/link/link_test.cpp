@@ -157,6 +157,7 @@ TEST_F(LinkTest, RetransmitsAtOnceOnNak) {
 }
 
 TEST_F(LinkTest, UnknownTypeIsNotRetransmittedAndTakesNoSeq) {
+  link.set_timing(2000, 5);  // no timeout in this test, however loaded the machine
   uint8_t resp[RBX1_MAX_PAYLOAD];
   uint8_t len = 0;
   uint8_t seq = link.next_seq();
@@ -179,6 +180,7 @@ TEST_F(LinkTest, UnknownTypeIsNotRetransmittedAndTakesNoSeq) {
 
 TEST_F(LinkTest, NakUnknownTypeOfARequestTypeIsAPlainNak) {
   // A NAK UNKNOWN_TYPE naming a request type's SEQ (a damaged or stale frame: nothing ran) is sent again.
+  link.set_timing(2000, 5);  // no timeout in this test, however loaded the machine
   peer.nak_reason = RBX1_UNKNOWN_TYPE;
   peer.nak_next = 2;
   rbx1_move_resp r{};

@@ -361,6 +361,7 @@ def test_unknown_type_takes_no_seq(pty_pair):
     # A frame of an unknown type is NAKed UNKNOWN_TYPE and its SEQ stays the next in order: a request with that SEQ
     # runs (not a duplicate, not SEQ_OLD), and the HELLO after it reports that request as the last one answered.
     link, peer = pty_pair
+    link.timeout = 2.0  # no timeout in this test, however loaded the machine
     link.hello()
     seq = link.seq
     link.send_raw(frame.encode(seq, 0x33, b""))
