@@ -394,6 +394,13 @@ int Console::start(std::string& error) {
   m.http.set_payload_max_length(daemon::kMaxRequestLine);
   m.http.set_keep_alive_timeout(5);
   m.routes();
+  // SO_REUSEADDR only: cpp-httplib's default also sets SO_REUSEPORT, with which a second daemon binds the same port
+  // and the kernel shares the connections between them (a browser could drive the other arm). A restart still
+  // binds at once over the old connections' TIME_WAIT.
+  m.http.set_socket_options([](socket_t sock) {
+    int yes = 1;
+    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
+  });
   std::string host = m.config.host == "localhost" ? "127.0.0.1" : m.config.host;
   if (m.config.port == 0) {
     m.port = m.http.bind_to_any_port(host);

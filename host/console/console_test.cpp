@@ -328,3 +328,23 @@ TEST(ConsoleHttp, NonLoopbackReadsNeedTheToken) {
   EXPECT_EQ(c.Get((std::string("/api/status?token=") + kToken).c_str())->status, 200);
   EXPECT_EQ(calls, 1);
 }
+
+TEST(ConsoleHttp, APortInUseIsRefusedNotShared) {
+  // Two daemons on one port would share its connections: the second must fail to listen, saying why.
+  std::string error;
+  rbx1::camera::CameraConfig cam;
+  cam.device = RBX1_DATA_DIR "/demo/scene.png";
+  auto camera = rbx1::camera::open_source(cam, error);
+  auto handler = [](const rbx1::daemon::Request&, std::shared_ptr<rbx1::daemon::Reply> r) { r->result({}); };
+  ConsoleConfig cfg;
+  cfg.bind = "127.0.0.1:0";
+  cfg.host = "127.0.0.1";
+  cfg.port = 0;
+  Console first(cfg, handler, camera.get(), 5);
+  ASSERT_EQ(first.start(error), 0) << error;
+  cfg.port = first.port();
+  cfg.bind = "127.0.0.1:" + std::to_string(first.port());
+  Console second(cfg, handler, camera.get(), 5);
+  EXPECT_LT(second.start(error), 0);
+  EXPECT_EQ(error, "console: cannot listen on " + cfg.bind + ": Address already in use");
+}

@@ -261,6 +261,8 @@ nlohmann::json Machine::status_reply() {
   }
   j["camera"] = camera_ ? camera_->describe() : "";
   j["calibration"] = calibration_;
+  j["places"] = nlohmann::json::array();
+  for (const auto& [name, place] : config_.arm.places) j["places"].push_back(name);  // place_save adds under mutex_
   if (!last_estop_.empty()) j["last_estop"] = last_estop_;
   return j;
 }

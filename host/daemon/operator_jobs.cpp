@@ -180,7 +180,10 @@ void Machine::job_place_save(Reply& reply, const std::string& name) {
     reply.error("state_failed", error);
     return;
   }
-  config_.arm.places[name] = p;
+  {
+    std::lock_guard lock(mutex_);  // status_reply lists the places
+    config_.arm.places[name] = p;
+  }
   reply.result({{"place", name}, {"x_mm", round3(p.x_mm)}, {"y_mm", round3(p.y_mm)}, {"z_mm", round3(p.z_mm)},
                 {"yaw_deg", round3(p.yaw_deg)}, {"saved", state_->path(kPlacesFile)}});
 }

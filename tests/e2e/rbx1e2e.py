@@ -149,8 +149,11 @@ class Daemon:
         self.socket = str(tmp / "rbx1d.sock")
         cfg = json.loads(json.dumps(cfg))  # deep copy
         cfg.setdefault("daemon", {})["socket"] = self.socket
-        # The web console on a free port (tests run side by side); console_url() reads it from the log.
-        cfg.setdefault("console", {}).setdefault("bind", "127.0.0.1:0")
+        # The web console on a free port (tests run side by side; the bundled file's 127.0.0.1:8080 may be taken);
+        # console_url() reads it from the log.
+        console = cfg.setdefault("console", {})
+        if console.get("bind", "127.0.0.1:8080") == "127.0.0.1:8080":
+            console["bind"] = "127.0.0.1:0"
         # Taught data stays in the test's folder, never in the machine's /var/lib/rbx1.
         cfg["daemon"].setdefault("state_dir", str(tmp / "state"))
         self.config = write_config(tmp, cfg)

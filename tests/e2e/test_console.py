@@ -69,10 +69,26 @@ def wait(drv, what, timeout=60, msg=""):
     return WebDriverWait(drv, timeout, poll_frequency=0.1).until(lambda d: what(d), msg)
 
 
-def log_entries(drv):
-    """The event log as (event, cmd, text) per line."""
+def view_state(drv):
+    """Whether the camera picture and the empty-state line are on screen, and the line's text. A shown picture must
+    have loaded (naturalWidth > 0): a broken image counts as a failure here."""
+    return drv.execute_script("""
+        const img = document.getElementById('view'), empty = document.getElementById('view-empty');
+        const shown = (el) => el.offsetParent !== null && el.getClientRects().length > 0;
+        if (shown(img) && !(img.complete && img.naturalWidth > 0) && !img.src.includes('live.mjpg'))
+          return {broken: img.src};
+        return {img_shown: shown(img), empty_shown: shown(empty), empty: shown(empty) ? empty.textContent : null};""")
+
+
+def log_entries(drv, after=0):
+    """The event log's lines numbered above after, as (event, cmd, text) (the page keeps the last 500 lines)."""
     return drv.execute_script(
-        "return [...document.querySelectorAll('#log li')].map(li => [li.dataset.event, li.dataset.cmd, li.textContent])")
+        "return [...document.querySelectorAll('#log li')].filter(li => li.value > arguments[0])"
+        ".map(li => [li.dataset.event, li.dataset.cmd, li.textContent])", after)
+
+
+def last_seq(drv):
+    return drv.execute_script("const l = document.querySelector('#log li:last-child'); return l ? l.value : 0")
 
 
 def rows(drv):
@@ -100,6 +116,9 @@ def http(url, body=None, token=None, ctype="application/json"):
 def test_page_shows_scan_and_objects(rig, browser):
     _, d, _ = rig
     wait(browser, lambda b: b.find_element(By.ID, "state").text == "ready", 20, "the page never showed ready")
+    # Before the first scan: a line saying so where the picture goes, no broken image.
+    assert view_state(browser) == {"img_shown": False, "empty_shown": True, "empty": "no scan yet: press Scan"}
+    browser.save_screenshot(str(SHOTS / "0-no-scan-yet.png"))
     browser.find_element(By.ID, "scan").click()
     labels = e2e.scene_labels()
     wait(browser, lambda b: len(rows(b)) == len(labels), 60, "the objects table never filled")
@@ -115,7 +134,18 @@ def test_page_shows_scan_and_objects(rig, browser):
         "const i = document.getElementById('view'); return i.complete && i.naturalWidth ? [i.naturalWidth, i.naturalHeight] : null"),
         20, "the annotated view never loaded")
     assert size == [640, 480], size
+    wait(browser, lambda b: view_state(b).get("img_shown"), 10, "the loaded scan is not shown")
+    assert not view_state(browser)["empty_shown"], view_state(browser)
     browser.save_screenshot(str(SHOTS / "1-scan.png"))
+    # The live view, then back to the scan.
+    browser.find_element(By.CSS_SELECTOR, "input[name=viewmode][value=live]").click()
+    wait(browser, lambda b: b.execute_script(
+        "const i = document.getElementById('view'); return i.src.includes('live.mjpg') && i.naturalWidth"), 20,
+        "the live view never showed a frame")
+    assert view_state(browser)["img_shown"] and not view_state(browser)["empty_shown"], view_state(browser)
+    browser.find_element(By.CSS_SELECTOR, "input[name=viewmode][value=scan]").click()
+    wait(browser, lambda b: "scan.jpg" in b.find_element(By.ID, "view").get_attribute("src")
+         and view_state(b).get("img_shown"), 20, "back to the scan: not shown")
     events = [e for e, cmd, _ in log_entries(browser) if cmd == "scan"]
     assert events[0] == "request" and "captured" in events and "detected" in events and events[-1] == "result", events
 
@@ -155,7 +185,7 @@ def test_estop_button_while_a_pick_waits(rig, browser):
     name = browser.find_element(By.ID, "pick-name")
     name.clear()
     name.send_keys(target)
-    base = len(log_entries(browser))
+    base = last_seq(browser)
     browser.find_element(By.ID, "pick").click()
     # Wait until the arm carries the part (the page's pick request is still open), then press E-STOP. The wait runs
     # in the page (10 ms polls), so the click follows the carry step's event by little even on a loaded machine.
@@ -163,7 +193,7 @@ def test_estop_button_while_a_pick_waits(rig, browser):
     browser.execute_async_script("""
         const base = arguments[0], done = arguments[arguments.length - 1];
         const timer = setInterval(() => {
-          const lines = [...document.querySelectorAll('#log li')].slice(base);
+          const lines = [...document.querySelectorAll('#log li')].filter((li) => li.value > base);
           if (lines.some((li) => li.dataset.event === 'step' && li.textContent.includes('name="carry"'))) {
             clearInterval(timer);
             done(true);
@@ -171,12 +201,13 @@ def test_estop_button_while_a_pick_waits(rig, browser):
         }, 10);""", base)
     assert browser.find_element(By.ID, "pick").get_attribute("disabled"), "the pick request is not pending"
     browser.find_element(By.ID, "estop").click()
-    wait(browser, lambda b: any(e == "error" and c == "pick" and "estop" in t for e, c, t in log_entries(b)[base:]),
+    wait(browser, lambda b: any(e == "error" and c == "pick" and "estop" in t for e, c, t in log_entries(b, base)),
          20, "the pick never ended with the e-stop")
-    # The e-stop's own request was answered while the pick's was open; the pick never got home (on a loaded
-    # machine the click may land a move or two after carry began, never after the pick's end).
-    after = log_entries(browser)[base:]
-    assert any(c == "estop" and e == "result" for e, c, _ in after), after
+    # The e-stop's own request was answered (its lines and the pick's come in either order); the pick never got
+    # home (on a loaded machine the click may land a move or two after carry began, never after the pick's end).
+    wait(browser, lambda b: any(c == "estop" and e == "result" for e, c, _ in log_entries(b, base)), 20,
+         "the e-stop request's result never reached the log")
+    after = log_entries(browser, base)
     assert not any(e == "result" and c == "pick" for e, c, _ in after), "the pick completed before the e-stop"
     wait(browser, lambda b: "latched" in b.find_element(By.ID, "message").text, 10, "no e-stop confirmation")
     st1 = status(d)
@@ -215,13 +246,13 @@ def click_and_wait(drv, element_id, cmd, timeout=60):
 
 
 def click_css_and_wait(drv, selector, cmd, timeout=60):
-    base = len(log_entries(drv))
+    base = last_seq(drv)
     button = drv.find_element(By.CSS_SELECTOR, selector)
     button.click()
-    wait(drv, lambda b: any(c == cmd and e in ("result", "error") for e, c, _ in log_entries(b)[base:]), timeout,
+    wait(drv, lambda b: any(c == cmd and e in ("result", "error") for e, c, _ in log_entries(b, base)), timeout,
          f"{selector}: no reply to {cmd}")
     wait(drv, lambda b: not button.get_attribute("disabled"), 10)
-    return next((e, t) for e, c, t in log_entries(drv)[base:] if c == cmd and e in ("result", "error"))
+    return next((e, t) for e, c, t in log_entries(drv, base) if c == cmd and e in ("result", "error"))
 
 
 def set_field(drv, element_id, value):
@@ -323,13 +354,13 @@ WORKSPACE = {"format": "rbx1-workspace", "version": 1, "model": "homography",
 @pytest.fixture
 def slow_rig(tmp_path):
     """A second daemon: a slow arm (10 degrees of J1 take 4 s) and a saved workspace calibration in its state."""
-    sim = e2e.Simfw(tmp_path, "--eeprom", tmp_path / "eeprom.bin")
-    e2e.configure_fast_firmware(sim.port)
     cfg = fast_config()
     cfg["arm"]["speeds"]["joint_speed_deg_s"] = 2.5
     cfg["console"] = {"bind": "127.0.0.1:0", "token": TOKEN}
     (tmp_path / "state").mkdir()
     (tmp_path / "state" / "workspace.json").write_text(json.dumps(WORKSPACE))
+    sim = e2e.Simfw(tmp_path, "--eeprom", tmp_path / "eeprom.bin")
+    e2e.configure_fast_firmware(sim.port)
     d = e2e.Daemon(tmp_path, cfg, sim.port)
     yield sim, d, d.console_url()
     d.stop()
@@ -374,9 +405,9 @@ def slow_page_and_client(browser, d, url):
     start = position(d)
     set_field(browser, "jog-joint", 1)
     set_field(browser, "jog-deg", 10)
-    base = len(log_entries(browser))
+    base = last_seq(browser)
     browser.find_element(By.ID, "jog-plus").click()
-    wait(browser, lambda b: any(c == "jog" and e == "step" for e, c, _ in log_entries(b)[base:]), 20,
+    wait(browser, lambda b: any(c == "jog" and e == "step" for e, c, _ in log_entries(b, base)), 20,
          "the jog never started")
     time.sleep(0.3)
     browser.close()  # the operator closes the tab mid-move

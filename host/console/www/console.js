@@ -67,8 +67,15 @@ function fmt(v) {
   if (typeof v === 'object') return Object.entries(v).map(([k, x]) => k + ' ' + fmt(x)).join(', ');
   return String(v);
 }
+function showPlaces(names) {
+  const list = $('places');
+  const have = [...list.options].map((o) => o.value).join('\n');
+  if (have !== names.join('\n'))
+    list.replaceChildren(...names.map((p) => Object.assign(document.createElement('option'), { value: p })));
+}
 function showStatus(s) {
   const fw = s.firmware || {};
+  if (s.places) showPlaces(s.places);
   const faulted = fw.state === 'FAULT' || (fw.faults && fw.faults.length);
   const badge = $('state');
   badge.textContent = s.ready ? 'ready' : faulted ? 'fault' : 'not ready';
@@ -114,12 +121,36 @@ async function pollStatus() {
 
 // ---- pictures and the objects (Figure 20, Figure 21) --------------------------------------------------------
 function viewMode() { return document.querySelector('input[name=viewmode]:checked').value; }
+// The picture is shown once it has loaded; until then, or when it cannot load, a line says why (never a broken
+// image).
+function showEmpty(text) {
+  const img = $('view');
+  img.hidden = true;
+  img.removeAttribute('src');
+  $('view-empty').textContent = text;
+  $('view-empty').hidden = false;
+}
 function showView() {
   const img = $('view');
-  if (viewMode() === 'live') img.src = withToken('/api/live.mjpg');
-  else if (state.lastScan > 0) img.src = withToken('/api/scan.jpg?n=' + state.lastScan);
-  else img.removeAttribute('src');
+  if (viewMode() === 'live') {
+    img.src = withToken('/api/live.mjpg');
+    img.hidden = false;  // a live stream may not fire load before its first frame is replaced
+    $('view-empty').hidden = true;
+  } else if (state.lastScan > 0) {
+    img.src = withToken('/api/scan.jpg?n=' + state.lastScan);
+  } else {
+    showEmpty('no scan yet: press Scan');
+  }
 }
+$('view').addEventListener('load', () => {
+  $('view').hidden = false;
+  $('view-empty').hidden = true;
+});
+$('view').addEventListener('error', () => {
+  if (!$('view').getAttribute('src')) return;
+  showEmpty(viewMode() === 'live' ? 'no live view: the camera or rbx1d did not answer (see the camera row)'
+                                  : 'the last scan\'s image could not be loaded (see the message above)');
+});
 document.querySelectorAll('input[name=viewmode]').forEach((r) => r.addEventListener('change', showView));
 
 function num(v, digits) { return v === null || v === undefined ? '–' : Number(v).toFixed(digits); }
@@ -195,6 +226,7 @@ function logEvent(e) {
   li.className = li.dataset.event;
   const when = e.ts ? e.ts.slice(11, 23) + ' ' : '';
   li.textContent = when + (e.cmd ? '[' + e.cmd + ' #' + e.req + '] ' : '') + summary(e);
+  li.title = JSON.stringify(e);  // the whole line on hover (the text is cut at 300 characters)
   const log = $('log');
   const atEnd = log.scrollTop + log.clientHeight >= log.scrollHeight - 4;
   log.appendChild(li);
@@ -247,15 +279,39 @@ document.querySelectorAll('button.jog-mm').forEach((b) => b.addEventListener('cl
   try { await call('jog', { mm }); } finally { b.disabled = false; }
 }));
 action('pose-save', () => call('pose_save', { name: 'scan' }));
-action('place-save', () => call('place_save', { name: $('place-name').value.trim() }).then(loadInfo));
+action('place-save', () => call('place_save', { name: $('place-name').value.trim() }).then(pollStatus));
 action('background', () => call('background'));
 action('teach', () => {
   if (!state.selected) return say('teach: click the object in the scan first', 'error');
   return call('teach', { index: state.selected, name: $('teach-name').value.trim() });
 });
+// The calibration's replies as the operator reads them: markers seen, what is left to touch, the residuals.
+function calibText(action, r) {
+  if (r.error) return r.error.code + ': ' + r.error.message;
+  const x = r.result;
+  const mm = (p) => p.map((v) => num(v, 2)).join(', ') + ' mm';
+  if (action === 'start')
+    return x.markers.length + ' markers seen: ' + x.markers.map((m) => m.id).join(' ') + '\n' +
+           'Jog the tool point onto a marker\'s centre, fingertips on the table, then Record it.';
+  if (action === 'record')
+    return 'marker ' + x.marker + ' recorded at ' + mm(x.mm) + ' (' + x.recorded + ' recorded)\n' +
+           (x.remaining.length ? 'left to touch: ' + x.remaining.join(' ') : 'every marker recorded: Fit');
+  if (action === 'cancel') return (x.cancelled ? 'cancelled' : 'nothing to cancel') + ': the ' + x.in_force + ' map stays in force';
+  if (action === 'status') return x.active ? 'calibrating' : 'no calibration running; in force: ' + x.in_force;
+  const head = x.model + ' over ' + x.markers.length + ' markers: RMS ' + num(x.rms_mm, 3) + ' mm, worst leave-one-out ' +
+               num(x.max_loo_mm, 3) + ' mm, table at z ' + num(x.table_z_mm, 2) + ' mm';
+  const verdict = x.saved ? 'saved to ' + x.saved + ': in force' : x.accepted ? 'accepted: Save to use it'
+    : 'refused: ' + x.reason + ' (re-record the marker with the largest leave-one-out error, or Cancel)';
+  const rows = x.markers.map((m) => String(m.id).padStart(6) + num(m.residual_mm, 3).padStart(10) + num(m.loo_mm, 3).padStart(15));
+  return head + '\n' + verdict + '\nmarker  residual  leave-one-out (mm)\n' + rows.join('\n');
+}
 async function calib(body) {
   const r = await call('calibrate_workspace', body);
-  $('calib-out').textContent = JSON.stringify(r.result !== undefined ? r.result : r.error, null, 1);
+  $('calib-out').textContent = calibText(body.action, r);
+  // The next marker to touch, ready in the field.
+  const x = r.result || {};
+  const next = body.action === 'start' && x.markers ? x.markers.map((m) => m.id) : x.remaining;
+  if (next && next.length) $('calib-marker').value = next[0];
   return r;
 }
 action('calib-start', () => calib({ action: 'start' }));
@@ -268,7 +324,7 @@ async function loadInfo() {
   try {
     const r = await fetch('/api/info', { headers: headers(false) });
     const j = await r.json();
-    $('places').replaceChildren(...(j.places || []).map((p) => Object.assign(document.createElement('option'), { value: p })));
+    if (j.places) showPlaces(j.places);
     const has = new Set(j.commands || []);
     $('jog-panel').hidden = !has.has('jog');
     $('teach-panel').hidden = !(has.has('pose_save') || has.has('place_save') || has.has('background') || has.has('teach'));
