@@ -3,6 +3,7 @@
 #include "console.hpp"
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstring>
 #include <map>
@@ -100,6 +101,7 @@ struct Console::Impl {
   EventHub hub;
   LiveView live;
   std::thread thread;
+  std::atomic<bool> listen_returned{false};
   std::atomic<int> streams{0};
   std::atomic<uint64_t> next_request{1};
   int port = 0;
@@ -412,7 +414,13 @@ int Console::start(std::string& error) {
     error = "console: cannot listen on " + m.config.bind + ": " + std::strerror(e);
     return -e;
   }
-  m.thread = std::thread([&m] { m.http.listen_after_bind(); });
+  m.thread = std::thread([&m] {
+    m.http.listen_after_bind();
+    m.listen_returned = true;
+  });
+  // httplib's stop() shuts only a listener already running: a stop right after start would be lost and the join in
+  // stop() would wait for ever. Start returns once it runs.
+  while (!m.http.is_running() && !m.listen_returned) std::this_thread::sleep_for(std::chrono::milliseconds(1));
   return 0;
 }
 
