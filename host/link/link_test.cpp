@@ -282,7 +282,14 @@ TEST_F(LinkTest, StreamLinkDownSaysWhichWereAnswered) {
   peer.silence_after_count = 2;
   std::vector<rbx1_move_resp> out;
   std::vector<bool> answered;
+  const size_t rx0 = peer.received().size();
   EXPECT_EQ(link.move_stream(move_batch(10, 0), out, answered), -ETIMEDOUT);
+  // The silence ends only after the peer has read every copy the link wrote (10 frames and the resends): a copy
+  // read after it would run (a loaded machine can hold the peer's thread back that long).
+  const size_t written = 10 + delta().retransmissions;
+  for (auto t0 = steady_clock::now(); peer.received().size() < rx0 + written && ms_since(t0) < 10000;)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  ASSERT_EQ(peer.received().size(), rx0 + written);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 3);
   for (int i = 0; i < 10; ++i) EXPECT_EQ(answered[i], i < 3) << i;
   peer.silence_after_type = -1;
