@@ -128,25 +128,6 @@ LightFit compensate_light(const cv::Mat& gray, const cv::Mat& bg, cv::Mat* corre
   return fit;
 }
 
-cv::Mat Contrast::contrast(cv::Rect roi, int s) const {
-  cv::Mat out;
-  if (s == 0) {  // an object of both polarities: the absolute difference
-    cv::Mat d;
-    cv::absdiff(gray(roi), background(roi), d);
-    d.convertTo(out, CV_16S);
-  } else if (s > 0) cv::subtract(gray(roi), background(roi), out, cv::noArray(), CV_16S);
-  else cv::subtract(background(roi), gray(roi), out, cv::noArray(), CV_16S);
-  return out;
-}
-
-cv::Mat Contrast::above(double t, int s) const {
-  cv::Mat d, out;
-  if (s > 0) cv::subtract(gray, background, d);  // saturates at 0: the other polarity drops out
-  else cv::subtract(background, gray, d);
-  cv::threshold(d, out, t, 255, cv::THRESH_BINARY);
-  return out;
-}
-
 bool contrast_from_background(const cv::Mat& gray, const cv::Mat& background_gray, Polarity objects, double min_contrast,
                               Contrast& out, std::string& error) {
   if (gray.size() != background_gray.size()) {

@@ -15,11 +15,6 @@ struct Contrast {
   int sign = -1;             // -1: objects darker than the background, +1: lighter, 0: both (auto)
   double noise_sigma = 1;    // robust spread of the difference over the table (noise plus pattern residue)
   bool global_model = false; // automatic background: one smooth surface fitted to the table class (bimodal)
-  // s * (gray - background) over roi, CV_16S, for objects of polarity s (-1 or +1): their contrast, positive;
-  // |gray - background| for s = 0 (an object of two colours).
-  cv::Mat contrast(cv::Rect roi, int s) const;
-  // 255 where the contrast of polarity s exceeds t (8-bit saturating arithmetic, full frame).
-  cv::Mat above(double t, int s) const;
 };
 
 // The background the paper assumes, captured for real: the per-pixel mean of several frames of the empty

@@ -7,6 +7,8 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "components.hpp"
+
 namespace rbx1::vision {
 namespace {
 
@@ -16,15 +18,27 @@ namespace {
 // level / 2). Pixels of other objects are 0.
 void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign, cv::Rect roi, double threshold,
                 Layer& layer) {
-  cv::Mat lab = labels(roi), d = con.contrast(roi, sign);
+  const cv::Mat lab = labels(roi), g = con.gray(roi), bg = con.background(roi);
   layer.sign = sign;
-  // Median contrast over the component (a histogram: contrast is an integer within +-255).
+  // The contrast over the ROI, computed once (8-bit inputs: an integer within +-255), and its median over
+  // the component (a histogram).
+  thread_local std::vector<int16_t> cbuf;
+  cbuf.resize(size_t(roi.area()));
   int hist[512] = {0}, n = 0;
   for (int y = 0; y < roi.height; ++y) {
-    const int16_t* dr = d.ptr<int16_t>(y);
+    const uchar* gr = g.ptr<uchar>(y);
+    const uchar* br = bg.ptr<uchar>(y);
     const int* lr = lab.ptr<int>(y);
+    int16_t* cr = cbuf.data() + size_t(y) * size_t(roi.width);
+    if (sign > 0) {
+      for (int x = 0; x < roi.width; ++x) cr[x] = int16_t(gr[x] - br[x]);
+    } else if (sign < 0) {
+      for (int x = 0; x < roi.width; ++x) cr[x] = int16_t(br[x] - gr[x]);
+    } else {
+      for (int x = 0; x < roi.width; ++x) cr[x] = int16_t(std::abs(gr[x] - br[x]));
+    }
     for (int x = 0; x < roi.width; ++x)
-      if (lr[x] == label) hist[std::clamp(dr[x] + 256, 0, 511)]++, ++n;
+      if (lr[x] == label) hist[cr[x] + 256]++, ++n;
   }
   int acc = 0, med = 0;
   for (int i = 0; i < 512; ++i)
@@ -38,23 +52,27 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign,
   const float a = float(1.0 / (hi - lo)), b = float(-lo / (hi - lo)), half = float(level / 2);
   // The object at its half level, then the soft edge within 2 px of it: a shadow or glare joined to the
   // object at the low threshold, but fainter than half its contrast, stays out of the moments.
+  // (An integer contrast c is above the half level exactly when it is above its floor.)
+  const int half_i = int(std::floor(half));
   layer.inside.create(roi.size(), CV_8U);
   for (int y = 0; y < roi.height; ++y) {
-    const int16_t* dr = d.ptr<int16_t>(y);
+    const int16_t* cr = cbuf.data() + size_t(y) * size_t(roi.width);
     const int* lr = lab.ptr<int>(y);
     uchar* ir = layer.inside.ptr<uchar>(y);
-    for (int x = 0; x < roi.width; ++x) ir[x] = lr[x] == label && dr[x] > half ? 255 : 0;
+    for (int x = 0; x < roi.width; ++x) ir[x] = uchar(-int((lr[x] == label) & (cr[x] > half_i)));
   }
   cv::Mat near;
   cv::dilate(layer.inside, near, cv::Mat(), cv::Point(-1, -1), 2);
   layer.soft.create(roi.size(), CV_32F);
   for (int y = 0; y < roi.height; ++y) {
-    const int16_t* dr = d.ptr<int16_t>(y);
+    const int16_t* cr = cbuf.data() + size_t(y) * size_t(roi.width);
     const int* lr = lab.ptr<int>(y);
     const uchar* nr = near.ptr<uchar>(y);
     float* sr = layer.soft.ptr<float>(y);
-    for (int x = 0; x < roi.width; ++x)
-      sr[x] = nr[x] && (lr[x] == label || lr[x] == 0) ? std::clamp(float(dr[x]) * a + b, 0.f, 1.f) : 0.f;
+    for (int x = 0; x < roi.width; ++x) {
+      const float v = std::clamp(float(cr[x]) * a + b, 0.f, 1.f);
+      sr[x] = nr[x] && (lr[x] == label || lr[x] == 0) ? v : 0.f;
+    }
   }
   layer.roi = roi;
   layer.label = label;
@@ -177,41 +195,20 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
   out.labels = cv::Mat(d.size(), CV_32S, cv::Scalar(0));
   out.obstacle.assign(1, 0);
   out.sign.assign(1, 0);
-  cv::Mat stats(0, cv::CC_STAT_MAX, CV_32S);
-  stats.push_back(cv::Mat(1, cv::CC_STAT_MAX, CV_32S, cv::Scalar(0)));
+  std::vector<Component> regions(1), comps;
   long long fg_pixels = 0;
   // Hysteresis: a region is grown down to the low threshold from pixels above the threshold, so an object
   // whose contrast dips on its relief or a dull side (a worn coin on a textured cloth) stays one region,
-  // while table texture that never reaches the threshold stays out.
+  // while table texture that never reaches the threshold stays out. Cleaning: a 3x3 opening (isolated noise
+  // pixels and hairlines). A polarity with nothing above the threshold adds no regions (the usual case for
+  // one of the two).
   const double low = std::max(opt.min_contrast / 2, opt.hysteresis * out.threshold);
   for (int sg : signs) {
-    cv::Mat bin = con.above(low, sg), lab, st, cen;
-    cv::morphologyEx(bin, bin, cv::MORPH_OPEN, cv::Mat());  // cleaning: isolated noise pixels and hairlines
-    cv::Mat high = con.above(out.threshold, sg);
-    cv::morphologyEx(high, high, cv::MORPH_OPEN, cv::Mat());
-    const int on = cv::countNonZero(high);  // the foreground at the threshold, cleaned
-    if (on == 0) continue;  // nothing of this polarity (the usual case for one of the two)
-    fg_pixels += on;
-    int n = cv::connectedComponentsWithStats(bin, lab, st, cen, 8, CV_32S);
-    std::vector<uint8_t> strong(size_t(n), 0);
-    {
-      for (int y = 0; y < high.rows; ++y) {
-        const uchar* hr = high.ptr<uchar>(y);
-        const int* lr = lab.ptr<int>(y);
-        for (int x = 0; x < high.cols; ++x)
-          if (hr[x]) strong[size_t(lr[x])] = 1;
-      }
-    }
-    const int offset = int(out.sign.size()) - 1;
-    if (offset == 0) {
-      out.labels = lab;
-    } else {
-      cv::add(lab, cv::Scalar(offset), lab, bin);
-      out.labels += lab;
-    }
-    for (int i = 1; i < n; ++i) {
-      if (!strong[size_t(i)]) st.at<int>(i, cv::CC_STAT_AREA) = 0;  // never reaches the threshold: not an object
-      stats.push_back(st.row(i));
+    // 8-bit contrast above t: above floor(t).
+    fg_pixels += label_components(con.gray, con.background, sg, int(std::floor(low)), int(std::floor(out.threshold)),
+                                  int(regions.size()), out.labels, comps);
+    for (const Component& c : comps) {
+      regions.push_back(c);
       out.sign.push_back(int8_t(sg));
       out.obstacle.push_back(0);
     }
@@ -222,14 +219,14 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
             "% foreground: wrong background image or polarity, or no table in view";
     return false;
   }
-  const int n = stats.rows;
+  const int n = int(regions.size());
   struct Cand { int label; cv::Rect box; };
   std::vector<Cand> keep;
   for (int i = 1; i < n; ++i) {
-    cv::Rect box(stats.at<int>(i, cv::CC_STAT_LEFT), stats.at<int>(i, cv::CC_STAT_TOP), stats.at<int>(i, cv::CC_STAT_WIDTH),
-                 stats.at<int>(i, cv::CC_STAT_HEIGHT));
-    int area = stats.at<int>(i, cv::CC_STAT_AREA);
-    if (area == 0) continue;
+    const Component& r = regions[size_t(i)];
+    if (!r.strong) continue;  // never reaches the threshold: not an object
+    const cv::Rect box = r.box;
+    const int area = r.area;
     if (area < opt.min_area_px) {
       ++out.specks;
       continue;

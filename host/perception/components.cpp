@@ -1,0 +1,176 @@
+// components.cpp - one polarity's cleaned binary image, streamed row by row, and its components by runs.
+#include "components.hpp"
+
+#include <algorithm>
+#include <cstdint>
+#include <cstring>
+
+namespace rbx1::vision {
+namespace {
+
+struct Run {
+  int y, x0, x1;  // pixels x0..x1 of row y
+  int parent;     // union-find over runs
+  bool strong;
+};
+
+int root_of(std::vector<Run>& runs, int i) {
+  while (runs[size_t(i)].parent != i) i = runs[size_t(i)].parent = runs[size_t(runs[size_t(i)].parent)].parent;
+  return i;
+}
+
+void unite(std::vector<Run>& runs, int a, int b) {
+  a = root_of(runs, a), b = root_of(runs, b);
+  if (a < b) runs[size_t(b)].parent = a;
+  else if (b < a) runs[size_t(a)].parent = b;
+}
+
+}  // namespace
+
+long long label_components(const cv::Mat& gray, const cv::Mat& background, int s, int low, int high, int first_label,
+                           cv::Mat& labels, std::vector<Component>& comps) {
+  CV_Assert(gray.type() == CV_8U && background.type() == CV_8U && gray.size() == background.size());
+  const int W = gray.cols, H = gray.rows;
+  comps.clear();
+  if (W == 0 || H == 0) return 0;
+  // Rows: the contrast (3 kept for the erosion), the eroded rows (3 kept for the dilation), each padded by one
+  // pixel on both sides with the value that leaves the min (255) or the max (0) unchanged: OpenCV's borders for
+  // erode and dilate. Rows outside the frame are those constants too.
+  const size_t P = size_t(W) + 2;
+  std::vector<uchar> buf(P * 8);
+  uchar* c[3] = {buf.data(), buf.data() + P, buf.data() + 2 * P};
+  uchar* e[3] = {buf.data() + 3 * P, buf.data() + 4 * P, buf.data() + 5 * P};
+  uchar* tmp = buf.data() + 6 * P;
+  uchar* full = buf.data() + 7 * P;  // 255 everywhere
+  std::vector<uchar> zero(P, 0), opened(static_cast<size_t>(W)), in(static_cast<size_t>(W));
+  std::memset(full, 255, P);
+  for (uchar* r : c) r[0] = r[W + 1] = 255;
+  for (uchar* r : e) r[0] = r[W + 1] = 0;
+
+  std::vector<Run> runs;
+  std::vector<int> row_start(size_t(H) + 1, 0);
+  long long above_high = 0;
+  const uchar lo = uchar(std::clamp(low, 0, 255)), hi = uchar(std::clamp(high, 0, 255));
+  const bool none_low = low >= 255, none_high = high >= 255;
+
+  for (int t = 0; t <= H + 1; ++t) {
+    if (t < H) {  // contrast row t
+      const uchar* g = gray.ptr<uchar>(t);
+      const uchar* b = background.ptr<uchar>(t);
+      uchar* o = c[t % 3] + 1;
+      if (s > 0) {
+        for (int x = 0; x < W; ++x) o[x] = uchar(std::max(0, int(g[x]) - int(b[x])));
+      } else {
+        for (int x = 0; x < W; ++x) o[x] = uchar(std::max(0, int(b[x]) - int(g[x])));
+      }
+    }
+    const int ye = t - 1;  // eroded row ye: min over rows ye-1..ye+1, then over x-1..x+1
+    if (ye >= 0 && ye < H) {
+      const uchar* a = ye - 1 >= 0 ? c[(ye - 1) % 3] : full;
+      const uchar* m = c[ye % 3];
+      const uchar* z = ye + 1 < H ? c[(ye + 1) % 3] : full;
+      for (size_t x = 0; x < P; ++x) tmp[x] = std::min(std::min(a[x], m[x]), z[x]);
+      uchar* o = e[ye % 3] + 1;
+      for (int x = 0; x < W; ++x) o[x] = std::min(std::min(tmp[x], tmp[x + 1]), tmp[x + 2]);
+    }
+    const int y = t - 2;  // opened row y: max over eroded rows y-1..y+1, then over x-1..x+1
+    if (y < 0 || y >= H) continue;
+    {
+      const uchar* a = y - 1 >= 0 ? e[(y - 1) % 3] : zero.data();
+      const uchar* m = e[y % 3];
+      const uchar* z = y + 1 < H ? e[(y + 1) % 3] : zero.data();
+      for (size_t x = 0; x < P; ++x) tmp[x] = std::max(std::max(a[x], m[x]), z[x]);
+      for (int x = 0; x < W; ++x) opened[size_t(x)] = std::max(std::max(tmp[x], tmp[x + 1]), tmp[x + 2]);
+      for (int x = 0; x < W; ++x) in[size_t(x)] = uchar(-int(opened[size_t(x)] > lo));
+    }
+    // Runs above the low level, skipping 8 pixels at a time where none is.
+    row_start[size_t(y)] = int(runs.size());
+    if (!none_low) {
+      const uchar* o = opened.data();
+      const uchar* m = in.data();
+      int x = 0;
+      while (x < W) {
+        if (x + 8 <= W) {
+          uint64_t v;
+          std::memcpy(&v, m + x, 8);
+          if (!v) {
+            x += 8;
+            continue;
+          }
+        }
+        if (!m[x]) {
+          ++x;
+          continue;
+        }
+        Run r{y, x, x, int(runs.size()), false};
+        while (x < W && m[x]) {
+          if (!none_high && o[x] > hi) r.strong = true, ++above_high;
+          ++x;
+        }
+        r.x1 = x - 1;
+        runs.push_back(r);
+      }
+    }
+    // 8-connected to the previous row's runs: overlapping once widened by one pixel.
+    if (y > 0) {
+      int i = row_start[size_t(y - 1)], j = row_start[size_t(y)];
+      const int i_end = row_start[size_t(y)], j_end = int(runs.size());
+      while (i < i_end && j < j_end) {
+        const Run& p = runs[size_t(i)];
+        const Run& q = runs[size_t(j)];
+        if (p.x1 + 1 < q.x0) ++i;
+        else if (q.x1 + 1 < p.x0) ++j;
+        else {
+          unite(runs, i, j);
+          if (p.x1 < q.x1) ++i;
+          else ++j;
+        }
+      }
+    }
+  }
+  row_start[size_t(H)] = int(runs.size());
+  if (above_high == 0) return 0;  // nothing of this polarity reaches the high level: no components at all
+
+  // One component per root; OpenCV's numbering: by the first 2x2 block (row pair, column pair) it occupies.
+  const long long bw = (W + 1) / 2;
+  std::vector<int> comp_of(runs.size(), -1);
+  std::vector<long long> key;
+  std::vector<int> roots;
+  for (size_t i = 0; i < runs.size(); ++i) {
+    const int r = root_of(runs, int(i));
+    const Run& u = runs[i];
+    const long long k = (u.y / 2) * bw + u.x0 / 2;
+    if (comp_of[size_t(r)] < 0) {
+      comp_of[size_t(r)] = int(roots.size());
+      roots.push_back(r);
+      key.push_back(k);
+    } else {
+      key[size_t(comp_of[size_t(r)])] = std::min(key[size_t(comp_of[size_t(r)])], k);
+    }
+  }
+  std::vector<int> order(roots.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = int(i);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return key[size_t(a)] < key[size_t(b)]; });
+  std::vector<int> rank(roots.size());
+  for (size_t i = 0; i < order.size(); ++i) rank[size_t(order[i])] = int(i);
+  struct Box { int x0 = INT32_MAX, y0 = INT32_MAX, x1 = -1, y1 = -1; };
+  std::vector<Box> boxes(roots.size());
+  comps.assign(roots.size(), Component{});
+  for (size_t i = 0; i < runs.size(); ++i) {
+    const Run& u = runs[i];
+    const int k = rank[size_t(comp_of[size_t(root_of(runs, int(i)))])];
+    Component& cp = comps[size_t(k)];
+    Box& bx = boxes[size_t(k)];
+    cp.area += u.x1 - u.x0 + 1;
+    cp.strong = cp.strong || u.strong;
+    bx.x0 = std::min(bx.x0, u.x0), bx.x1 = std::max(bx.x1, u.x1);
+    bx.y0 = std::min(bx.y0, u.y), bx.y1 = std::max(bx.y1, u.y);
+    int* lr = labels.ptr<int>(u.y);
+    std::fill(lr + u.x0, lr + u.x1 + 1, first_label + k);
+  }
+  for (size_t k = 0; k < comps.size(); ++k)
+    comps[k].box = cv::Rect(boxes[k].x0, boxes[k].y0, boxes[k].x1 - boxes[k].x0 + 1, boxes[k].y1 - boxes[k].y0 + 1);
+  return above_high;
+}
+
+}  // namespace rbx1::vision

@@ -1,0 +1,25 @@
+// components.hpp - the binary image of one polarity (contrast, 3x3 opening, hysteresis) and its 8-connected
+// components, in one streaming pass over the frame and a labelling by runs.
+#pragma once
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace rbx1::vision {
+
+struct Component {
+  int area = 0;      // pixels above the low level
+  cv::Rect box;      // bounding box
+  bool strong = false;  // some pixel above the high level (hysteresis: a region that never is, is not an object)
+};
+
+// Components of the pixels whose contrast s * (gray - background) (8-bit, saturated at 0), opened with a 3x3
+// square (isolated noise pixels and hairlines dropped), is above `low`; 8-connected. Equal to thresholding
+// then opening then cv::connectedComponents (a flat opening commutes with a threshold), labels numbered as
+// OpenCV numbers them (by each component's first 2x2 block in raster order). Labels first_label,
+// first_label + 1, ... are written into `labels` (CV_32S, the frame's size, 0 elsewhere left untouched);
+// comps receives one entry per label. Returns the number of pixels above `high` (the cleaned foreground).
+long long label_components(const cv::Mat& gray, const cv::Mat& background, int s, int low, int high, int first_label,
+                           cv::Mat& labels, std::vector<Component>& comps);
+
+}  // namespace rbx1::vision
