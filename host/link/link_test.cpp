@@ -131,8 +131,8 @@ TEST_F(LinkTest, RetransmitsTheSameBytesOnSilence) {
   rbx1_move_resp r{};
   ASSERT_EQ(link.move(some_move(5), r), 0);
   int64_t took = ms_since(t0);
-  EXPECT_GE(took, 790);  // two 400 ms timeouts
-  EXPECT_LT(took, 2000);
+  EXPECT_GE(took, 790);  // two 400 ms timeouts (the counts below say no third one; wall time on a loaded machine
+                         // says nothing more)
   auto frames = with_seq(peer, seq);
   ASSERT_EQ(frames.size(), 3u);
   EXPECT_EQ(frames[0].crc, frames[1].crc);
@@ -325,8 +325,7 @@ TEST_F(LinkTest, LinkDownAfterFiveRetransmissions) {
   rbx1_status_resp s{};
   EXPECT_EQ(link.status(s), -ETIMEDOUT);
   int64_t took = ms_since(t0);
-  EXPECT_GE(took, 590);
-  EXPECT_LT(took, 1500);
+  EXPECT_GE(took, 590);  // six 100 ms timeouts; the frame count below says there were no more
   EXPECT_EQ(with_seq(peer, seq).size(), 6u);
   EXPECT_EQ(delta().retransmissions, 5u);
   EXPECT_EQ(delta().link_down, 1u);
