@@ -128,13 +128,18 @@ void Machine::stop() {
 // ---- e-stop ---------------------------------------------------------------------------------------------
 
 void Machine::estop(const std::string& source) {
-  // The frame first: nothing (no lock, no log) may delay it.
+  // The source before the frame, so that a job that sees the firmware's e-stop names it (it said "firmware" when
+  // it read the latched state first); estop_mu_ guards nothing else, so it cannot delay the frame.
+  {
+    std::lock_guard lock(estop_mu_);
+    last_estop_ = source;
+  }
+  // Then the frame: nothing else (no other lock, no log) may delay it.
   rbx1_estop_resp resp{};
   int r = link_.estop(resp);
   set_led(false);  // latched: not ready until clear_fault
   {
     std::lock_guard lock(mutex_);
-    last_estop_ = source;
     abort_reason_ = "estop";
     for (auto& job : queue_) job.reply->error("estop", "e-stop (" + source + ") before the job started");
     queue_.clear();
@@ -145,6 +150,11 @@ void Machine::estop(const std::string& source) {
     spdlog::error("estop ({}): ESTOP not acknowledged ({}); the firmware's own e-stop input is the backstop", source, r);
   else
     spdlog::warn("estop ({}): ESTOP acknowledged, status {}", source, rbx1_status_name(resp.status));
+}
+
+std::string Machine::estop_source() {
+  std::lock_guard lock(estop_mu_);
+  return last_estop_.empty() ? "firmware" : last_estop_;
 }
 
 // ---- control requests (server thread) --------------------------------------------------------------------
@@ -263,7 +273,7 @@ nlohmann::json Machine::status_reply() {
   j["calibration"] = calibration_;
   j["places"] = nlohmann::json::array();
   for (const auto& [name, place] : config_.arm.places) j["places"].push_back(name);  // place_save adds under mutex_
-  if (!last_estop_.empty()) j["last_estop"] = last_estop_;
+  if (std::lock_guard lock(estop_mu_); !last_estop_.empty()) j["last_estop"] = last_estop_;
   return j;
 }
 
@@ -526,8 +536,7 @@ bool Machine::run_steps(Reply& reply, const std::vector<MotionStep>& steps, Moti
     if (int r = link_.stop(sr); r < 0) spdlog::warn("job failed ({}): STOP not acknowledged ({})", result.code, r);
   }
   if (!result.ok) {
-    if (result.code == "estop") reply.event("estop", {{"source", last_estop_.empty() ? "firmware" : last_estop_},
-                                                      {"firmware", status_json(result.last)}});
+    if (result.code == "estop") reply.event("estop", {{"source", estop_source()}, {"firmware", status_json(result.last)}});
     reply.error(result.code, result.message);
     return false;
   }
@@ -660,6 +669,9 @@ void Machine::job_clear_fault(Reply& reply) {
     std::lock_guard lock(mutex_);
     prepared_ = ok;
     link_error_ = ok ? "" : error;
+  }
+  {
+    std::lock_guard lock(estop_mu_);
     last_estop_.clear();
   }
   if (!ok) {

@@ -73,6 +73,7 @@ class Machine {
   bool plan_pick(const nlohmann::json& detections, const nlohmann::json& object, const std::string& place,
                  std::vector<MotionStep>& steps, nlohmann::json& info, std::string& error);
   // Capture + detect at the scan pose; false after reply.error.
+  std::string estop_source();  // who latched the last e-stop ("firmware" when no request or input of ours did)
   // One camera frame, or a camera_failed error on reply (false).
   bool capture(Reply& reply, cv::Mat& frame);
   bool capture_and_detect(Reply& reply, nlohmann::json& detections, std::string& report);
@@ -123,6 +124,7 @@ class Machine {
   bool session_ = false;            // this daemon prepared the firmware: a later reset of it is a hold, not a fresh start
   std::string link_error_;          // why the link is not ready
   std::optional<rbx1_status_resp> last_status_;
+  std::mutex estop_mu_;             // guards last_estop_ only (taken before the ESTOP frame: never held long)
   std::string last_estop_;          // source of the last e-stop
   std::atomic<bool> abort_{false};
   std::function<void()> on_shutdown_;

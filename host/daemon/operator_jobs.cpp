@@ -132,7 +132,7 @@ void Machine::job_jog(Reply& reply, const Request& r) {
       spdlog::warn("jog: the client went away mid-move: STOP sent ({})", rs);
     }
     if (result.code == "estop")
-      reply.event("estop", {{"source", last_estop_.empty() ? "firmware" : last_estop_}, {"firmware", status_json(result.last)}});
+      reply.event("estop", {{"source", estop_source()}, {"firmware", status_json(result.last)}});
     reply.error(result.code, result.message);
     return;
   }
