@@ -11,6 +11,14 @@
 
 namespace rbx1::control {
 
+bool unix_address(const std::string& path, sockaddr_un& addr) {
+  addr = sockaddr_un{};
+  addr.sun_family = AF_UNIX;
+  if (path.empty() || path.size() >= sizeof(addr.sun_path)) return false;
+  std::memcpy(addr.sun_path, path.c_str(), path.size() + 1);
+  return true;
+}
+
 Client::~Client() { close(); }
 
 void Client::close() {
@@ -21,13 +29,11 @@ void Client::close() {
 
 int Client::connect(const std::string& socket_path, std::string& error) {
   close();
-  sockaddr_un addr{};
-  addr.sun_family = AF_UNIX;
-  if (socket_path.size() >= sizeof(addr.sun_path)) {
+  sockaddr_un addr;
+  if (!unix_address(socket_path, addr)) {
     error = socket_path + ": path too long for a Unix socket";
     return -ENAMETOOLONG;
   }
-  std::memcpy(addr.sun_path, socket_path.c_str(), socket_path.size() + 1);
   fd_ = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
   if (fd_ < 0) {
     int e = errno;

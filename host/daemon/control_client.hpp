@@ -1,5 +1,7 @@
 // control_client.hpp - the rbx1d control socket client: connect, send one request line, read the reply lines.
 #pragma once
+#include <sys/un.h>
+
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -10,6 +12,9 @@ namespace rbx1::control {
 
 // Default socket path (also the [daemon] socket default).
 inline constexpr const char* kDefaultSocket = "/run/rbx1/rbx1d.sock";
+
+// The address of a Unix socket at path; false when the path is empty or does not fit.
+bool unix_address(const std::string& path, sockaddr_un& addr);
 
 class Client {
  public:

@@ -24,6 +24,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include "control_client.hpp"
+
 namespace rbx1::daemon {
 
 namespace {
@@ -237,13 +239,14 @@ Server::~Server() {
 
 int Server::open(const std::string& path, unsigned mode, std::string& error) {
   path_ = path;
-  sockaddr_un addr{};
-  addr.sun_family = AF_UNIX;
-  if (path.empty() || path.size() >= sizeof(addr.sun_path)) {
+  // Bound and listening under a temporary name, then renamed into place: a client never finds the path before
+  // it accepts connections (a connect between bind() and listen() would be refused).
+  std::string tmp = path + ".new";
+  sockaddr_un addr, tmp_addr;
+  if (!control::unix_address(path, addr) || !control::unix_address(tmp, tmp_addr)) {
     error = path + ": not a usable Unix socket path (empty or too long)";
     return -ENAMETOOLONG;
   }
-  std::memcpy(addr.sun_path, path.c_str(), path.size() + 1);
   struct stat st {};
   if (::lstat(path.c_str(), &st) == 0) {
     if (!S_ISSOCK(st.st_mode)) {
@@ -260,16 +263,6 @@ int Server::open(const std::string& path, unsigned mode, std::string& error) {
     }
     ::unlink(path.c_str());
   }
-  // Bound and listening under a temporary name, then renamed into place: a client never finds the path before
-  // it accepts connections (a connect between bind() and listen() would be refused).
-  std::string tmp = path + ".new";
-  sockaddr_un tmp_addr{};
-  tmp_addr.sun_family = AF_UNIX;
-  if (tmp.size() >= sizeof(tmp_addr.sun_path)) {
-    error = path + ": not a usable Unix socket path (too long)";
-    return -ENAMETOOLONG;
-  }
-  std::memcpy(tmp_addr.sun_path, tmp.c_str(), tmp.size() + 1);
   ::unlink(tmp.c_str());
   listen_fd_ = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
   if (listen_fd_ < 0 || ::bind(listen_fd_, reinterpret_cast<sockaddr*>(&tmp_addr), sizeof tmp_addr) < 0 ||
