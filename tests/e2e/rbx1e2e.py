@@ -245,9 +245,14 @@ def request(sock_path, req, timeout=120, on_event=None):
 # ---- kinematics (independent of host/arm: the chain of host/arm/kinematics.hpp, written out again) -----------
 
 
+def status(d, timeout=120):
+    """The daemon's status result."""
+    return d.request({"cmd": "status"}, timeout)[1]["result"]
+
+
 def position(d):
     """The simulated arm's step position, from the daemon's status."""
-    return d.request({"cmd": "status"})[1]["result"]["firmware"]["position"]
+    return status(d)["firmware"]["position"]
 
 
 def ok(d, req):

@@ -19,9 +19,9 @@ import pytest
 from selenium import webdriver
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
-from selenium.webdriver.support.ui import WebDriverWait
 
 import rbx1e2e as e2e
+from consolepage import last_seq, log_entries, status_row, wait
 from conftest import fast_config
 
 TOKEN = "console-test-token-0123456789"
@@ -65,9 +65,6 @@ def open_page(drv, url):
     drv.execute_script("arguments[0].dispatchEvent(new Event('change'))", token)
 
 
-def wait(drv, what, timeout=60, msg=""):
-    return WebDriverWait(drv, timeout, poll_frequency=0.1).until(lambda d: what(d), msg)
-
 
 def view_state(drv):
     """Whether the camera picture and the empty-state line are on screen, and the line's text. A shown picture must
@@ -80,24 +77,12 @@ def view_state(drv):
         return {img_shown: shown(img), empty_shown: shown(empty), empty: shown(empty) ? empty.textContent : null};""")
 
 
-def log_entries(drv, after=0):
-    """The event log's lines numbered above after, as (event, cmd, text) (the page keeps the last 500 lines)."""
-    return drv.execute_script(
-        "return [...document.querySelectorAll('#log li')].filter(li => li.value > arguments[0])"
-        ".map(li => [li.dataset.event, li.dataset.cmd, li.textContent])", after)
-
-
-def last_seq(drv):
-    return drv.execute_script("const l = document.querySelector('#log li:last-child'); return l ? l.value : 0")
 
 
 def rows(drv):
     return drv.execute_script(
         "return [...document.querySelectorAll('#objects tbody tr')].map(tr => [...tr.cells].map(c => c.textContent))")
 
-
-def status(d):
-    return d.request({"cmd": "status"})[1]["result"]
 
 
 def http(url, body=None, token=None, ctype="application/json"):
@@ -173,7 +158,7 @@ def test_pick_from_the_page(rig, browser):
     browser.save_screenshot(str(SHOTS / "2-pick-done.png"))
     # The firmware executed the plan, and the arm is home (the page's state table says so too).
     assert len(sim.moves()) > moves_before
-    st = status(d)
+    st = e2e.status(d)
     assert st["job"] is None and st["ready"], st
     assert st["firmware"]["position"] == [0] * 6, st
     assert "ok" in browser.find_element(By.ID, "message").get_attribute("class")
@@ -210,9 +195,9 @@ def test_estop_button_while_a_pick_waits(rig, browser):
     after = log_entries(browser, base)
     assert not any(e == "result" and c == "pick" for e, c, _ in after), "the pick completed before the e-stop"
     wait(browser, lambda b: "latched" in b.find_element(By.ID, "message").text, 10, "no e-stop confirmation")
-    st1 = status(d)
+    st1 = e2e.status(d)
     time.sleep(0.4)
-    st2 = status(d)
+    st2 = e2e.status(d)
     fw = st2["firmware"]
     assert fw["state"] == "FAULT" and "ESTOP_COMMAND" in fw["faults"], fw
     assert st1["firmware"]["position"] == fw["position"], "the arm still moves after the e-stop"
@@ -226,14 +211,11 @@ def test_estop_button_while_a_pick_waits(rig, browser):
     wait(browser, lambda b: b.find_element(By.ID, "state").text == "ready", 20)
 
 
-def position(d):
-    return status(d)["firmware"]["position"]
-
 
 def wait_idle(d, timeout=20):
     deadline = time.monotonic() + timeout
     while True:
-        st = status(d)
+        st = e2e.status(d)
         if st["job"] is None and st["firmware"]["state"] == "IDLE":
             return st
         assert time.monotonic() < deadline, st
@@ -269,24 +251,24 @@ def test_jog_from_the_page_moves_the_arm_by_the_amount_asked(rig, browser):
     wait(browser, lambda b: b.find_element(By.ID, "state").text == "ready", 20)
     assert browser.find_element(By.ID, "jog-panel").is_displayed(), "the jog panel is hidden"
     # Joint 1 by 5 degrees, then back: the firmware's step counts moved by exactly that.
-    before = position(d)
+    before = e2e.position(d)
     set_field(browser, "jog-joint", 1)
     set_field(browser, "jog-deg", 5)
     e, t = click_and_wait(browser, "jog-plus", "jog")
     assert e == "result", t
-    after = position(d)
+    after = e2e.position(d)
     want = round(5 * J1_STEPS_PER_DEG)
     assert abs((after[0] - before[0]) - want) <= 1 and after[1:] == before[1:], (before, after, want)
     e, t = click_and_wait(browser, "jog-minus", "jog")
-    assert e == "result" and position(d) == before, (t, position(d), before)
+    assert e == "result" and e2e.position(d) == before, (t, e2e.position(d), before)
     # The tool point by 10 mm up and 10 mm along -y from the scan pose (pointing down): FK of the step counts.
     assert "result" in d.request({"cmd": "scan"})[1]
-    p0, yaw0, _ = e2e.tool_pose(arm, position(d))
+    p0, yaw0, _ = e2e.tool_pose(arm, e2e.position(d))
     set_field(browser, "jog-mm", 10)
     for axis, sign, delta in ((2, 1, (0, 0, 10)), (1, -1, (0, -10, 0))):
         e, t = click_css_and_wait(browser, f"button.jog-mm[data-axis='{axis}'][data-sign='{sign}']", "jog")
         assert e == "result", t
-        p1, yaw1, tilt = e2e.tool_pose(arm, position(d))
+        p1, yaw1, tilt = e2e.tool_pose(arm, e2e.position(d))
         moved = [b - a for a, b in zip(p0, p1)]
         assert all(abs(m - w) < 0.1 for m, w in zip(moved, delta)), (moved, delta)
         assert abs(yaw1 - yaw0) < 0.1 and tilt < 0.1, (yaw0, yaw1, tilt)
@@ -299,7 +281,7 @@ def test_bad_requests_move_nothing(rig):
     sim, d, url = rig
     api = url.rstrip("/") + "/api/"
     before = len(sim.moves())
-    pos = status(d)["firmware"]["position"]
+    pos = e2e.status(d)["firmware"]["position"]
     code, body = http(api + "home", "{}")
     assert (code, body["error"]["code"]) == (401, "unauthorized"), body
     assert "token" in body["error"]["message"]
@@ -317,7 +299,7 @@ def test_bad_requests_move_nothing(rig):
     code, body = http(api + "home", "{}", token=TOKEN, ctype="text/plain")
     assert code == 415, body
     assert len(sim.moves()) == before, "a refused request moved the arm"
-    assert status(d)["firmware"]["position"] == pos
+    assert e2e.status(d)["firmware"]["position"] == pos
     # Reading state on loopback needs no token; the daemon is still up.
     code, body = http(api + "status")
     assert code == 200 and body["result"]["ready"], body
@@ -367,19 +349,14 @@ def slow_rig(tmp_path):
     sim.stop()
 
 
-def status_row(drv, key):
-    return drv.execute_script("""
-        const row = [...document.querySelectorAll('#arm-state tr')].find(tr => tr.cells[0].textContent === arguments[0]);
-        return row ? row.cells[1].textContent : null;""", key)
-
 
 def test_status_shows_the_calibration_and_a_jog_stops_when_the_page_goes_away(rig, slow_rig, browser):
     # The first daemon: the config's mount is in force.
-    assert status(rig[1])["calibration"] == {"in_force": "mount"}
+    assert e2e.status(rig[1])["calibration"] == {"in_force": "mount"}
     wait(browser, lambda b: (status_row(b, "calibration") or "").startswith("mount"), 10,
          "the page does not show the mount mapping in force")
     sim, d, url = slow_rig
-    cal = status(d)["calibration"]
+    cal = e2e.status(d)["calibration"]
     assert cal["in_force"] == "workspace" and cal["markers"] == 6 and cal["rms_mm"] == 0.042, cal
     assert cal["table_z_mm"] == 0.61 and cal["file"].endswith("workspace.json"), cal
     first = browser.current_window_handle
@@ -402,7 +379,7 @@ def slow_page_and_client(browser, d, url):
     browser.save_screenshot(str(SHOTS / "5-calibration-in-force.png"))
     # A 10 degree jog of J1 (4 s) from the page; the tab is closed as soon as the arm moves. Chromium may go on
     # reading the jog's own response; the page's event stream closes with the tab.
-    start = position(d)
+    start = e2e.position(d)
     set_field(browser, "jog-joint", 1)
     set_field(browser, "jog-deg", 10)
     base = last_seq(browser)
@@ -420,7 +397,7 @@ def slow_page_and_client(browser, d, url):
     log = d.log_path.read_text()
     assert "console: the page of a jog went away mid-move" in log and "STOP sent" in log, log[-2000:]
     # The same from a bare HTTP client that hangs up mid-move.
-    start = position(d)
+    start = e2e.position(d)
     host, port = url.split("//")[1].strip("/").split(":")
     c = httpclient.HTTPConnection(host, int(port), timeout=10)
     c.connect()
@@ -439,9 +416,9 @@ def slow_page_and_client(browser, d, url):
     assert "console: the client of a jog went away mid-move" in d.log_path.read_text()
     assert d.request({"cmd": "status"})[1]["result"]["ready"]
     # A client that stays gets the whole reply after the spaces, as JSON.
-    start = position(d)
+    start = e2e.position(d)
     code, body = http(url.rstrip("/") + "/api/jog", json.dumps({"joint": 1, "deg": 1}), token=TOKEN)
-    assert code == 200 and body["result"]["moved_steps"][0] == position(d)[0] - start[0] != 0, body
+    assert code == 200 and body["result"]["moved_steps"][0] == e2e.position(d)[0] - start[0] != 0, body
 
 
 REQUEST_ERRORS = {"bad_json", "bad_request", "unknown_command", "missing_field", "bad_field"}

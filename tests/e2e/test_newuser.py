@@ -21,9 +21,9 @@ from selenium import webdriver
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
-from selenium.webdriver.support.ui import WebDriverWait
 
 import rbx1e2e as e2e
+from consolepage import last_seq, log_entries, status_row, wait
 from conftest import fast_config
 
 sys.path.insert(0, str(e2e.ROOT / "tools" / "markersim"))
@@ -88,19 +88,7 @@ def cell(tmp_path):
     sim.stop()
 
 
-def wait(drv, what, timeout=60, msg=""):
-    return WebDriverWait(drv, timeout, poll_frequency=0.05).until(lambda d: what(d), msg)
 
-
-def log_entries(drv, after=0):
-    """The event log's lines numbered above after (the page keeps the last 500): (event, cmd, text)."""
-    return drv.execute_script(
-        "return [...document.querySelectorAll('#log li')].filter(li => li.value > arguments[0])"
-        ".map(li => [li.dataset.event, li.dataset.cmd, li.textContent])", after)
-
-
-def last_seq(drv):
-    return drv.execute_script("const l = document.querySelector('#log li:last-child'); return l ? l.value : 0")
 
 
 FINAL = """
@@ -131,13 +119,10 @@ def type_into(drv, element_id, text):
     el.send_keys(str(text))
 
 
-def status(d):
-    return d.request({"cmd": "status"})[1]["result"]
-
 
 def tool(d, arm):
     """Where the tool point is: the user's eye (forward kinematics of the firmware's step counts)."""
-    return e2e.tool_pose(arm, status(d)["firmware"]["position"])
+    return e2e.tool_pose(arm, e2e.status(d)["firmware"]["position"])
 
 
 def jog_axis(drv, axis, delta):
@@ -178,11 +163,6 @@ def jog_to(drv, d, arm, target, lift=True):
 def calib_out(drv):
     return drv.find_element(By.ID, "calib-out").text
 
-
-def status_row(drv, key):
-    return drv.execute_script("""
-        const row = [...document.querySelectorAll('#arm-state tr')].find(tr => tr.cells[0].textContent === arguments[0]);
-        return row ? row.cells[1].textContent : null;""", key)
 
 
 def rows(drv):
@@ -228,7 +208,7 @@ def first_session(table, sim, d, drv, state):
     # 10 mm and saves it.
     scan(drv, 0)
     jog_axis(drv, 2, 10.0)
-    here = status(d)  # joints rounded to 0.01 deg
+    here = e2e.status(d)  # joints rounded to 0.01 deg
     saved = result(drv, "#pose-save", "pose_save")
     poses = json.loads((state / "poses.json").read_text())
     assert saved["pose"] == "scan" and "warning" not in saved, saved
@@ -239,7 +219,7 @@ def first_session(table, sim, d, drv, state):
     # 2. The workspace calibration: the marker sheet on the table, Start at the (new) scan pose.
     truth = table.show(MARKERS)
     result(drv, "#calib-start", "calibrate_workspace")
-    assert status(d)["firmware"]["position"] == scan_steps, "Start did not go to the saved scan pose"
+    assert e2e.status(d)["firmware"]["position"] == scan_steps, "Start did not go to the saved scan pose"
     assert calib_out(drv).startswith("8 markers seen: 0 1 2 3 4 5 6 7"), calib_out(drv)
     jogs = 0
     for n in range(TOUCHED):
@@ -298,7 +278,7 @@ def first_session(table, sim, d, drv, state):
     bg = result(drv, "#background", "background")
     assert bg["background"] == str(state / "background.png") and bg["frames"] == 8, bg
     assert cv2.imread(str(state / "background.png")).shape == (600, 800, 3)
-    assert status(d)["firmware"]["position"] == scan_steps
+    assert e2e.status(d)["firmware"]["position"] == scan_steps
     phases["background"] = time.monotonic() - t0
 
     # 5. The object on the table: Scan, click it in the picture, name it, Teach; the next scan knows it.
@@ -346,7 +326,7 @@ def first_session(table, sim, d, drv, state):
           f"from the saved shelf (x, y), at z {release[2]:.2f} mm over a shelf at {places['shelf']['z_mm']:.2f} mm")
     assert grasp_err < 1.0, (grasp, truth["objects"])
     assert release_err < 0.2 and release[2] > places["shelf"]["z_mm"], (release, places["shelf"])
-    assert status(d)["firmware"]["position"] == [0] * 6  # home
+    assert e2e.status(d)["firmware"]["position"] == [0] * 6  # home
     wait(drv, lambda b: b.find_element(By.ID, "message").text == "pick: done", 20)
     drv.save_screenshot(str(SHOTS / "3-picked.png"))
     phases["pick"] = time.monotonic() - t0
@@ -369,15 +349,15 @@ def first_session(table, sim, d, drv, state):
          "the pick never ended with the e-stop")
     assert not any(e == "result" and c == "pick" for e, c, _ in log_entries(drv, base)), "the pick completed"
     wait(drv, lambda b: b.find_element(By.ID, "state").text == "fault", 10, "the page does not show the fault")
-    fw = status(d)["firmware"]
+    fw = e2e.status(d)["firmware"]
     assert fw["state"] == "FAULT" and "ESTOP_COMMAND" in fw["faults"] and fw["position"] != [0] * 6, fw
     still = fw["position"]
     wait(drv, lambda b: "latched" in b.find_element(By.ID, "message").text, 10, "no e-stop confirmation")
     drv.save_screenshot(str(SHOTS / "4-estop.png"))
-    assert status(d)["firmware"]["position"] == still, "the arm moved after the e-stop"
+    assert e2e.status(d)["firmware"]["position"] == still, "the arm moved after the e-stop"
     result(drv, "#clear-fault", "clear_fault")
     result(drv, "#home", "home")
     wait(drv, lambda b: b.find_element(By.ID, "state").text == "ready", 20)
-    assert status(d)["firmware"]["position"] == [0] * 6
+    assert e2e.status(d)["firmware"]["position"] == [0] * 6
     phases["e-stop"] = time.monotonic() - t0
     print("cumulative seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in phases.items()))

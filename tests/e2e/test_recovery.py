@@ -28,9 +28,6 @@ def pick(d, name, on_event=None):
     return d.request({"cmd": "pick", "name": name, "place": "tray"}, timeout=180, on_event=on_event)
 
 
-def status(d):
-    return d.request({"cmd": "status"}, timeout=10)[1]["result"]
-
 
 def test_restarted_daemon_stops_the_dead_daemons_queue(tmp_path, sim, daemon_factory):
     set_heartbeat(sim.port, 5000)
@@ -86,14 +83,14 @@ def assert_held_until_clear_fault(d, sim2):
     """Connected to the fresh firmware and not ready, saying why; home refused; clear_fault, then home moves."""
     deadline = time.monotonic() + 20
     while True:
-        st = status(d)
+        st = e2e.status(d, timeout=10)
         if st["link"]["connected"] and st["firmware"] and "clear-fault" in st["link"].get("error", ""):
             break
         assert not st["ready"], f"ready again after the power cycle: {st}"
         assert time.monotonic() < deadline, f"never reconnected to the fresh firmware: {st}"
         time.sleep(0.1)
     time.sleep(1.0)  # and it stays so
-    st = status(d)
+    st = e2e.status(d, timeout=10)
     assert not st["ready"], st
     assert d.log_path.read_text().count("positions declared") == 1, "declared again without the operator"
     _, final = d.request({"cmd": "home"})
