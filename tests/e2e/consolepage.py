@@ -1,10 +1,23 @@
 """consolepage.py - reading the web console's page in the browser tests (test_console, test_newuser): waits on DOM
 conditions, the numbered event log, the arm's status rows."""
+from selenium.common.exceptions import TimeoutException, WebDriverException
 from selenium.webdriver.support.ui import WebDriverWait
 
 
 def wait(drv, what, timeout=60, msg=""):
-    return WebDriverWait(drv, timeout, poll_frequency=0.05).until(lambda d: what(d), msg)
+    """what(drv) once it is truthy; on timeout the error also carries what the page said and its last log lines."""
+    try:
+        return WebDriverWait(drv, timeout, poll_frequency=0.05).until(lambda d: what(d))
+    except TimeoutException:
+        raise TimeoutException(f"{msg} (after {timeout} s; {page_context(drv)})") from None
+
+
+def page_context(drv):
+    try:
+        said = drv.execute_script("const m = document.getElementById('message'); return m ? m.textContent : null")
+        return f"page message {said!r}, last log lines {log_entries(drv)[-8:]}"
+    except WebDriverException as e:  # the tab is gone
+        return f"page unreadable: {e.msg}"
 
 
 def log_entries(drv, after=0):
