@@ -55,14 +55,15 @@ def run_with_outage(tmp_path, sim, daemon_factory, step, outage):
         proxy.close()
 
 
-def test_two_second_outage(tmp_path, sim, daemon_factory):
-    def outage(proxy):
-        time.sleep(0.05)
-        proxy.set_cut(True)
-        time.sleep(2.0)
-        proxy.set_cut(False)
+def two_second_outage(proxy):
+    time.sleep(0.05)
+    proxy.set_cut(True)
+    time.sleep(2.0)
+    proxy.set_cut(False)
 
-    events, final = run_with_outage(tmp_path, sim, daemon_factory, "descend", outage)
+
+def test_two_second_outage(tmp_path, sim, daemon_factory):
+    events, final = run_with_outage(tmp_path, sim, daemon_factory, "descend", two_second_outage)
     # 2 s outlive the firmware's 1 s heartbeat: it stopped; the flushed entries were sent again, once.
     assert e2e.events_named(events, "heartbeat_lost"), [e["event"] for e in events]
 
@@ -128,13 +129,7 @@ def test_link_error_on_clear_fault_after_heartbeat_loss(tmp_path, sim, daemon_fa
     error): the job recovers the link, reads that the fault is gone, and completes the pick."""
     sim.control("drop 9 6")
 
-    def outage(proxy):
-        time.sleep(0.05)
-        proxy.set_cut(True)
-        time.sleep(2.0)
-        proxy.set_cut(False)
-
-    events, final = run_with_outage(tmp_path, sim, daemon_factory, "descend", outage)
+    events, final = run_with_outage(tmp_path, sim, daemon_factory, "descend", two_second_outage)
     assert e2e.events_named(events, "heartbeat_lost"), [e["event"] for e in events]
     assert final["result"]["link_recoveries"] >= 2, final  # the outage, then the CLEAR_FAULT
     downs = [e for e in events if e["event"] == "link_down"]
