@@ -209,6 +209,16 @@ bool wait_job(Machine& m, Pred pred, int timeout_ms) {
   return false;
 }
 
+// Waits up to timeout_ms for the status reply to say ready.
+bool wait_ready(Machine& m, int timeout_ms = 5000) {
+  for (int t = 0; t < timeout_ms; t += 25) {
+    auto st = m.call(Command::Status);
+    if (st.is_object() && st["result"].value("ready", false)) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  return false;
+}
+
 size_t count_lines(const std::vector<std::string>& lines, const std::string& needle) {
   size_t n = 0;
   for (const auto& l : lines) n += l.find(needle) != std::string::npos;
@@ -242,13 +252,7 @@ TEST(DaemonStartButton, PressRunsTheConfiguredPickOnce) {
     Machine machine(config, nullptr, std::move(source));
     std::string error;
     ASSERT_EQ(machine.start(error), 0) << error;
-    bool ready = false;
-    for (int i = 0; i < 200 && !ready; ++i) {
-      auto st = machine.call(Command::Status);
-      ready = st.is_object() && st["result"].value("ready", false);
-      if (!ready) std::this_thread::sleep_for(std::chrono::milliseconds(25));
-    }
-    ASSERT_TRUE(ready);
+    ASSERT_TRUE(wait_ready(machine));
     EXPECT_TRUE(wait_job(machine, [](const nlohmann::json& j) { return j.is_null(); }, 100));
 
     button->inject(false);  // pressed
@@ -308,13 +312,7 @@ TEST(DaemonGpioEstop, EdgeDuringAPickStopsTheArmAndAbortsTheJob) {
   std::string error;
   ASSERT_EQ(machine.start(error), 0) << error;
   EXPECT_GE(led->writes(), 1) << "the LED was not put in a known state at start";
-  bool ready = false;
-  for (int i = 0; i < 200 && !ready; ++i) {
-    auto st = machine.call(Command::Status);
-    ready = st.is_object() && st["result"].value("ready", false);
-    if (!ready) std::this_thread::sleep_for(std::chrono::milliseconds(25));
-  }
-  ASSERT_TRUE(ready);
+  ASSERT_TRUE(wait_ready(machine));
   EXPECT_TRUE(led->value()) << "the status LED is dark while the daemon is ready";
 
   Handler handler = [&machine](const Request& r, std::shared_ptr<Reply> reply) { machine.handle(r, std::move(reply)); };
