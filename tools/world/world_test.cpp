@@ -68,6 +68,13 @@ struct Driver {
                           ",\"pulse_us\":" + std::to_string(pulse) + "}";
     ASSERT_TRUE(w.apply_log_line(line, e)) << e;
   }
+  // Opens to 15 mm 60 mm above (x, y), comes down to 2 mm (the closing line along y) and closes.
+  void grasp_at(double x, double y) {
+    move_to(x, y, 60, 90);
+    gripper(15);
+    move_to(x, y, 2, 90);
+    gripper(0);
+  }
 };
 
 int count(const nlohmann::json& state, const char* key) { return state["counts"][key].get<int>(); }
@@ -93,10 +100,8 @@ TEST(Geometry, ExtentInBandAndOverlap) {
 TEST(Gripper, StraddlingGraspCarriesTheObjectToTheTray) {
   World w(bar_scene());
   Driver d(w);
-  d.move_to(300, 0, 60, 90);  // above, closing line across the bar
-  d.gripper(15);              // 10 mm bar, opened to 15
-  d.move_to(300, 0, 2, 90);
-  d.gripper(0);
+  // Over the 10 mm bar, the closing line across it, opened to 15 mm.
+  d.grasp_at(300, 0);
   auto s = w.state();
   EXPECT_EQ(count(s, "collisions"), 0);
   ASSERT_EQ(count(s, "grasps"), 1);
@@ -152,10 +157,7 @@ TEST(Gripper, DescendingOntoTheObjectIsACollision) {
 TEST(Gripper, ClosingBesideTheObjectClosesOnNothing) {
   World w(bar_scene());
   Driver d(w);
-  d.move_to(300, 30, 60, 90);
-  d.gripper(15);
-  d.move_to(300, 30, 2, 90);
-  d.gripper(0);
+  d.grasp_at(300, 30);
   auto s = w.state();
   EXPECT_EQ(count(s, "collisions"), 0);
   EXPECT_EQ(count(s, "grasps"), 0);
@@ -249,10 +251,7 @@ TEST(Table, TheMarkerSheetSetsTheObjectsAsideAndIsSeenWhereItLies) {
   EXPECT_GT(grey.at<uchar>(280, 400), 150) << "the bar is set aside";
   // Fingers coming down where the bar was touch nothing; closing there grasps nothing.
   Driver d(w);
-  d.move_to(300, 0, 60, 90);
-  d.gripper(15);
-  d.move_to(300, 0, 2, 90);
-  d.gripper(0);
+  d.grasp_at(300, 0);
   auto st = w.state();
   EXPECT_EQ(count(st, "collisions"), 0);
   EXPECT_EQ(count(st, "grasps"), 0);
