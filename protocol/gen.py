@@ -186,6 +186,8 @@ def gen_h(spec, msgs):
             L.append(f"#define RBX1_{m.name}_RESP_LEN {payload_len(m.response)}")
     longest = max(payload_len(m.response) for m in msgs if not m.firmware_only)
     L.append(f"#define RBX1_MAX_RESP_LEN {longest} /* the longest response payload */")
+    longest = max(payload_len(m.request) for m in msgs if not m.firmware_only)
+    L.append(f"#define RBX1_MAX_REQ_LEN {longest} /* the longest request payload */")
     L.append("")
     L.append("/* Payload structs (host byte order; pack/unpack convert to and from the little-endian wire). */")
     for m in msgs:

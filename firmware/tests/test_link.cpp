@@ -1,5 +1,5 @@
-// test_link.cpp - the link: the window (duplicates answered from memory and not re-executed, gaps and old frames
-// refused), garbage and corrupt frames NAKed (or ignored) with nothing executed, resynchronisation, HELLO.
+// test_link.cpp - the link: the window (duplicates answered from memory and not re-executed, requests ahead of a gap
+// held and run in order once it is filled, old frames refused), garbage and corrupt frames NAKed (or ignored) with nothing executed, resynchronisation, HELLO.
 #include <vector>
 
 #include "fw_fixture.hpp"
@@ -105,20 +105,132 @@ TEST_F(Fw, WindowFramesAreRunInOrderOnceAndOldOnesRefused) {
   EXPECT_EQ(s.moves_accepted, RBX1_WINDOW);
   EXPECT_EQ(s.position[0], RBX1_WINDOW * 10);
   EXPECT_EQ(sim::board().pulses[0], (uint64_t)RBX1_WINDOW * 10);
-  // A gap: the request after the next one is NAKed SEQ_GAP and not run; in order, both run.
+  // A gap: the request after the next one is held (NAK HELD) and not run; the missing one runs, then the held one.
   std::vector<uint8_t> pa = move_payload({0, 0, 0, 0, 0, 0}), pb = move_payload({5, 0, 0, 0, 0, 0});
   uint8_t sa = take_seq(), sb = take_seq();
-  Reply gap = exchange(encode(sb, RBX1_MSG_MOVE, pb.data(), (uint8_t)pb.size()));
-  ASSERT_TRUE(gap.got);
-  EXPECT_EQ(gap.type, RBX1_MSG_NAK);
-  EXPECT_EQ(gap.payload[0], RBX1_SEQ_GAP);
-  EXPECT_EQ(exchange(encode(sa, RBX1_MSG_MOVE, pa.data(), (uint8_t)pa.size())).payload[0], RBX1_OK);
-  EXPECT_EQ(exchange(encode(sb, RBX1_MSG_MOVE, pb.data(), (uint8_t)pb.size())).payload[0], RBX1_OK);
+  Reply held = exchange(encode(sb, RBX1_MSG_MOVE, pb.data(), (uint8_t)pb.size()));
+  ASSERT_TRUE(held.got);
+  EXPECT_EQ(held.type, RBX1_MSG_NAK);
+  EXPECT_EQ(held.payload[0], RBX1_HELD);
+  run_ms(5);
+  EXPECT_EQ(sim::board().pulses[0], (uint64_t)RBX1_WINDOW * 10);  // not run
+  frames_.clear();
+  std::vector<uint8_t> fa = encode(sa, RBX1_MSG_MOVE, pa.data(), (uint8_t)pa.size());
+  send_bytes(fa.data(), fa.size());
+  run_ms(5);
+  ASSERT_EQ(frames_.size(), 2u);  // the filler's answer, then the held one's
+  EXPECT_EQ(frames_[0].seq, sa);
+  EXPECT_EQ(frames_[1].seq, sb);
+  EXPECT_EQ(frames_[1].type, RBX1_RESPONSE(RBX1_MSG_MOVE));
+  EXPECT_EQ(frames_[1].payload[0], RBX1_OK);
+  EXPECT_EQ(exchange(encode(sb, RBX1_MSG_MOVE, pb.data(), (uint8_t)pb.size())).payload, frames_[1].payload);
   run_until_idle();
   s = status();
   EXPECT_EQ(s.moves_accepted, RBX1_WINDOW + 2);
   EXPECT_EQ(s.position[0], 5);
   EXPECT_EQ(sim::board().pulses[0], (uint64_t)RBX1_WINDOW * 10 + RBX1_WINDOW * 10 + 5);
+}
+
+TEST_F(Fw, HeldFramesRunOnceInSeqOrderWhenTheGapIsFilled) {
+  ready();
+  // Seven MOVEs behind a missing one arrive in reverse order, each twice (a copy of a held one is held once):
+  // every one is answered HELD and nothing runs; one further ahead (8) is beyond the window: NAK SEQ_GAP.
+  uint8_t first = take_seq();
+  std::vector<std::vector<uint8_t>> frames;
+  for (int i = 0; i < RBX1_WINDOW; i++) {
+    std::vector<uint8_t> p = move_payload({(i + 1) * 10, 0, 0, 0, 0, 0});
+    frames.push_back(encode(static_cast<uint8_t>(first + i), RBX1_MSG_MOVE, p.data(), (uint8_t)p.size()));
+    if (i) take_seq();
+  }
+  for (int i = RBX1_WINDOW - 1; i >= 1; i--) {
+    for (int copy = 0; copy < 2; copy++) {
+      Reply r = exchange(frames[i]);
+      ASSERT_TRUE(r.got);
+      EXPECT_EQ(r.type, RBX1_MSG_NAK);
+      EXPECT_EQ(r.payload[0], RBX1_HELD) << i;
+    }
+  }
+  std::vector<uint8_t> p9 = move_payload({90, 0, 0, 0, 0, 0});
+  Reply beyond = exchange(encode(static_cast<uint8_t>(first + RBX1_WINDOW), RBX1_MSG_MOVE, p9.data(), (uint8_t)p9.size()));
+  EXPECT_EQ(beyond.payload[0], RBX1_SEQ_GAP);
+  run_ms(20);
+  EXPECT_EQ(sim::board().pulses[0], 0u);  // nothing held has run
+  frames_.clear();
+  send_bytes(frames[0].data(), frames[0].size());
+  run_ms(10);
+  ASSERT_EQ(frames_.size(), (size_t)RBX1_WINDOW);
+  for (int i = 0; i < RBX1_WINDOW; i++) {
+    EXPECT_EQ(frames_[i].seq, (uint8_t)(first + i));
+    EXPECT_EQ(frames_[i].type, RBX1_RESPONSE(RBX1_MSG_MOVE));
+    EXPECT_EQ(frames_[i].payload[0], RBX1_OK);
+  }
+  run_until_idle();
+  rbx1_status_resp s = status();
+  EXPECT_EQ(s.moves_accepted, RBX1_WINDOW);  // each once
+  EXPECT_EQ(s.moves_done, RBX1_WINDOW);
+  EXPECT_EQ(s.position[0], RBX1_WINDOW * 10);
+  EXPECT_EQ(sim::board().pulses[0], (uint64_t)RBX1_WINDOW * 10);  // in order: 10, 20, ... 80, never backwards
+}
+
+TEST_F(Fw, EstopDropsHeldFramesNakedAsGapsAndNeverRuns) {
+  ready();
+  std::vector<uint8_t> pa = move_payload({100, 0, 0, 0, 0, 0}), pb = move_payload({200, 0, 0, 0, 0, 0});
+  uint8_t sa = take_seq(), sb = take_seq();
+  std::vector<uint8_t> fb = encode(sb, RBX1_MSG_MOVE, pb.data(), (uint8_t)pb.size());
+  EXPECT_EQ(exchange(fb).payload[0], RBX1_HELD);
+  // ESTOP: its answer, then NAK SEQ_GAP for the dropped one (not run: the host resends it if it still wants it).
+  frames_.clear();
+  std::vector<uint8_t> fe = encode(sa, RBX1_MSG_ESTOP, nullptr, 0);
+  send_bytes(fe.data(), fe.size());
+  run_ms(5);
+  ASSERT_EQ(frames_.size(), 2u);
+  EXPECT_EQ(frames_[0].type, RBX1_RESPONSE(RBX1_MSG_ESTOP));
+  EXPECT_EQ(frames_[1].type, RBX1_MSG_NAK);
+  EXPECT_EQ(frames_[1].seq, sb);
+  EXPECT_EQ(frames_[1].payload[0], RBX1_SEQ_GAP);
+  // The gap filled after the ESTOP: the missing one runs (refused: the e-stop latched), the dropped one does not.
+  frames_.clear();
+  std::vector<uint8_t> fa = encode(sa, RBX1_MSG_MOVE, pa.data(), (uint8_t)pa.size());
+  send_bytes(fa.data(), fa.size());
+  run_ms(5);
+  ASSERT_EQ(frames_.size(), 1u);
+  EXPECT_EQ(frames_[0].seq, sa);
+  EXPECT_EQ(frames_[0].payload[0], RBX1_FAULT_ACTIVE);
+  Reply again = exchange(fb);  // the dropped one sent again: now in order, run (refused too)
+  EXPECT_EQ(again.type, RBX1_RESPONSE(RBX1_MSG_MOVE));
+  EXPECT_EQ(again.payload[0], RBX1_FAULT_ACTIVE);
+  rbx1_status_resp s = status();
+  EXPECT_EQ(s.moves_accepted, 0);
+  EXPECT_EQ(sim::board().pulses[0], 0u);
+}
+
+TEST_F(Fw, HeldStopRunsInItsPlaceInTheOrder) {
+  // A STOP held behind a missing MOVE runs after it (its flush removes it) and before the MOVE held behind it.
+  ready();
+  std::vector<uint8_t> pa = move_payload({4000, 0, 0, 0, 0, 0}), pc = move_payload({300, 0, 0, 0, 0, 0});
+  uint8_t sa = take_seq(), sstop = take_seq(), sc = take_seq();
+  EXPECT_EQ(exchange(encode(sstop, RBX1_MSG_STOP, nullptr, 0)).payload[0], RBX1_HELD);
+  EXPECT_EQ(exchange(encode(sc, RBX1_MSG_MOVE, pc.data(), (uint8_t)pc.size())).payload[0], RBX1_HELD);
+  frames_.clear();
+  std::vector<uint8_t> fa = encode(sa, RBX1_MSG_MOVE, pa.data(), (uint8_t)pa.size());
+  send_bytes(fa.data(), fa.size());
+  run_ms(5);
+  ASSERT_EQ(frames_.size(), 3u);
+  EXPECT_EQ(frames_[0].seq, sa);
+  EXPECT_EQ(frames_[0].payload[0], RBX1_OK);
+  EXPECT_EQ(frames_[1].seq, sstop);
+  EXPECT_EQ(frames_[1].type, RBX1_RESPONSE(RBX1_MSG_STOP));
+  EXPECT_EQ(frames_[2].seq, sc);
+  EXPECT_EQ(frames_[1].payload[0], RBX1_OK);
+  EXPECT_EQ(frames_[2].seq, sc);
+  // The MOVE after the STOP runs after it, as on a stop-and-wait link: refused BUSY while the arm stops.
+  EXPECT_EQ(frames_[2].payload[0], RBX1_BUSY);
+  run_until_idle();
+  rbx1_status_resp s = status();
+  EXPECT_EQ(s.moves_accepted, 1);
+  EXPECT_EQ(s.moves_done + s.moves_flushed, 1);
+  EXPECT_EQ(s.position[0], (int32_t)sim::board().pulses[0]);
+  EXPECT_LT(s.position[0], 4000);  // stopped short of the first move's target
 }
 
 TEST_F(Fw, CorruptFrameIsNakedAndNotExecuted) {

@@ -1,6 +1,7 @@
 // fake_peer.cpp - the scripted firmware of the link tests: decoder, the window (rbx1_window), fault injection.
 #include "fake_peer.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <poll.h>
@@ -100,15 +101,16 @@ void FakePeer::handle(const rbx1_frame& f) {
     respond(f.seq, RBX1_MSG_NAK, p, n, false);
     return;
   }
-  bool corrupt = false;
-  if (corrupt_next > 0) {
-    --corrupt_next;
-    corrupt = true;
-  }
-  // The window, as in the firmware: duplicates answered from memory, gaps and old frames NAKed, ESTOP outside.
+  // The window, as in the firmware: duplicates answered from memory, requests ahead of a gap held, further gaps and
+  // old frames NAKed, ESTOP outside (it drops the held requests).
   const rbx1_window_entry* dup = nullptr;
   uint8_t before_hello = 0xFF;
   uint8_t verdict = rbx1_window_accept(&window_, &f, &dup, &before_hello);
+  bool corrupt = false;  // only responses count for corrupt_next (not NAKs)
+  if ((verdict == RBX1_WIN_DUPLICATE || verdict == RBX1_WIN_NEW || verdict == RBX1_WIN_BYPASS) && corrupt_next > 0) {
+    --corrupt_next;
+    corrupt = true;
+  }
   if (verdict == RBX1_WIN_DUPLICATE) {
     ++cached_replies_;
     respond(f.seq, dup->type, dup->payload, dup->len, corrupt);
@@ -116,6 +118,13 @@ void FakePeer::handle(const rbx1_frame& f) {
   }
   if (verdict == RBX1_WIN_UNKNOWN) {  // as the firmware: NAKed, not executed, no place in the order
     rbx1_nak nak{RBX1_UNKNOWN_TYPE};
+    uint8_t p[RBX1_NAK_LEN];
+    respond(f.seq, RBX1_MSG_NAK, p, rbx1_nak_pack(&nak, p), false);
+    return;
+  }
+  if (verdict == RBX1_WIN_HELD) {
+    ++held_;
+    rbx1_nak nak{RBX1_HELD};
     uint8_t p[RBX1_NAK_LEN];
     respond(f.seq, RBX1_MSG_NAK, p, rbx1_nak_pack(&nak, p), false);
     return;
@@ -140,6 +149,27 @@ void FakePeer::handle(const rbx1_frame& f) {
   respond(f.seq, RBX1_RESPONSE(f.type), resp, len, corrupt);
   if (duplicate) respond(f.seq, RBX1_RESPONSE(f.type), resp, len, false);
   if (silence_left_ < 0 && silence_after_type == f.type) silence_left_ = silence_after_count;
+  if (verdict == RBX1_WIN_BYPASS) {  // ESTOP: the held requests are dropped, never run, each NAKed SEQ_GAP
+    uint8_t seqs[RBX1_HELD_MAX];
+    for (uint8_t i = 0, n = rbx1_window_drop_held(&window_, seqs); i < n; ++i) {
+      rbx1_nak nak{RBX1_SEQ_GAP};
+      uint8_t p[RBX1_NAK_LEN];
+      respond(seqs[i], RBX1_MSG_NAK, p, rbx1_nak_pack(&nak, p), false);
+    }
+  }
+  // A filled gap: the requests held behind it run now, in SEQ order.
+  for (const rbx1_window_held* h; verdict == RBX1_WIN_NEW && (h = rbx1_window_release(&window_)) != nullptr;) {
+    rbx1_frame g{};
+    g.seq = h->seq;
+    g.type = h->type;
+    g.len = h->len;
+    g.crc = h->crc;
+    std::memcpy(g.payload, h->payload, std::min<size_t>(h->len, RBX1_MAX_REQ_LEN));
+    uint8_t out[RBX1_MAX_PAYLOAD];
+    uint8_t n = execute(g, out);
+    rbx1_window_record(&window_, g.seq, g.crc, RBX1_RESPONSE(g.type), out, n);
+    respond(g.seq, RBX1_RESPONSE(g.type), out, n, false);
+  }
 }
 
 // A tiny firmware: every request succeeds; MOVE and GRIPPER count as done at once.
@@ -176,6 +206,11 @@ uint8_t FakePeer::execute(const rbx1_frame& f, uint8_t* resp) {
     case RBX1_MSG_MOVE:
     case RBX1_MSG_GRIPPER: {
       ++moves_done_;
+      rbx1_move_req q{};
+      if (f.type == RBX1_MSG_MOVE && rbx1_move_req_unpack(&q, f.payload, f.len) == RBX1_OK) {
+        std::lock_guard<std::mutex> lock(mu_);
+        move_targets_.push_back(q.target[0]);
+      }
       rbx1_move_resp m{RBX1_OK, 7};
       return rbx1_move_resp_pack(&m, resp);
     }

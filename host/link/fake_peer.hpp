@@ -14,8 +14,8 @@
 
 namespace rbx1::link::test {
 
-// Speaks the protocol like the firmware (the window: in-order, at-most-once execution with remembered answers;
-// ESTOP exempt), with fault knobs the tests set before or between requests.
+// Speaks the protocol like the firmware (the window: in-order, at-most-once execution with remembered answers,
+// requests ahead of a gap held; ESTOP exempt, it drops the held ones), with fault knobs the tests set before or between requests.
 class FakePeer {
  public:
   struct Received {
@@ -52,6 +52,11 @@ class FakePeer {
   int executed(uint8_t type) const;
   int cached_replies() const { return cached_replies_; }
   int refused() const { return refused_; }  // NAKs SEQ_GAP and SEQ_OLD sent
+  int held() const { return held_; }        // NAKs HELD sent (requests kept ahead of a gap, copies included)
+  std::vector<int32_t> move_targets() const {  // MOVE target[0] in the order executed
+    std::lock_guard<std::mutex> lock(mu_);
+    return move_targets_;
+  }
   std::chrono::steady_clock::time_point sent_at(uint8_t type) const;  // last response of this type sent
 
  private:
@@ -75,10 +80,12 @@ class FakePeer {
   mutable std::mutex mu_;
   std::vector<Received> received_;
   std::map<uint8_t, int> executed_;
+  std::vector<int32_t> move_targets_;
   std::map<uint8_t, std::chrono::steady_clock::time_point> sent_at_;
   std::vector<Pending> pending_;
   std::atomic<int> cached_replies_{0};
   std::atomic<int> refused_{0};
+  std::atomic<int> held_{0};
   rbx1_window window_{};  // at-most-once memory, as in the firmware
   uint16_t moves_done_ = 0;
   uint8_t homed_ = 0, enabled_ = 0;  // SET_POSITION/HOME and ENABLE, reported by STATUS

@@ -1,4 +1,4 @@
-// link.cpp - requests one at a time and windowed streams, retransmission (go-back-N), answer matching, e-stop,
+// link.cpp - requests one at a time and windowed streams, retransmission (selective repeat), answer matching, e-stop,
 // reconnect (PROTOCOL.md).
 #include "link.hpp"
 
@@ -241,16 +241,34 @@ void Link::port_gone(int err) {
 }
 
 // A stream's retransmission rule (PROTOCOL.md "Window"), under state_mu_: the firmware answers what it receives in
-// order, so an answer or NAK about one copy of w shows that every unanswered request whose latest copy went out
-// before that copy lost it (the frame or its answer); a NAK about w's latest copy refuses that copy too. The k-th
-// answer or NAK naming w is about its k-th copy or a later one: the earliest it can be about is the one used.
+// order, so an answer or NAK about one copy of w shows that every unanswered request, not held, whose latest copy
+// went out before that copy lost it (the frame or its answer); a NAK about w's latest copy refuses that copy too (a
+// NAK HELD does not: the firmware keeps it). The k-th answer or NAK naming w is about its k-th copy or a later one:
+// the earliest it can be about is the one used.
 void Link::attribute(Waiter* w, bool refused) {
   if (w->txs.empty()) return;  // a single request (transact): its own rule
   ++w->events;
   uint32_t copy = w->txs[std::min<size_t>(w->events, w->txs.size()) - 1];
   if (refused && copy == w->txs.back()) w->resend = true;
+  if (w->held) w->resend = false;
   for (Waiter* o : waiting_)
-    if (o != w && !o->done && !o->txs.empty() && o->txs.back() < copy) o->resend = true;
+    if (o != w && !o->done && !o->held && !o->txs.empty() && o->txs.back() < copy) o->resend = true;
+}
+
+// An answer to w in a stream: the firmware runs requests in SEQ order, so every unanswered request before w (in
+// waiting_, oldest first) ran and its answer, sent before w's, was lost: those held, or all of them when w was
+// held, are sent again (answered from memory). A held request's answer follows the answer of the request that
+// filled the gap, not its own copy, so it tells nothing by copies; any other answer is attributed as above.
+void Link::attribute_answer(Waiter* w) {
+  if (w->txs.empty()) return;
+  for (Waiter* o : waiting_) {
+    if (o == w) break;
+    if (!o->done && (o->held || w->held)) {
+      o->held = false;
+      o->resend = true;
+    }
+  }
+  if (!w->held) attribute(w, false);
 }
 
 void Link::on_frame(void* ctx, const rbx1_frame* f) {
@@ -262,9 +280,15 @@ void Link::on_frame(void* ctx, const rbx1_frame* f) {
     rbx1_nak_unpack(&nak, f->payload, f->len);
     auto mark = [&](Waiter* w) {
       if (w && !w->done && w->seq == f->seq) {
+        spdlog::debug("{}: NAK {} for seq {}", self->name_, rbx1_status_name(nak.reason), f->seq);
+        if (nak.reason == RBX1_HELD) {  // kept by the firmware until the gap before it is filled: wait for the answer
+          w->held = true;
+          self->attribute(w, false);
+          return;
+        }
+        w->held = false;  // a SEQ_GAP after HELD: the firmware dropped it (ESTOP)
         w->nak = true;
         w->nak_reason = nak.reason;
-        spdlog::debug("{}: NAK {} for seq {}", self->name_, rbx1_status_name(nak.reason), f->seq);
         // A BAD_CRC or BAD_LENGTH NAK carries a SEQ read from damaged bytes (it may name another request): only
         // NAKs of frames whose CRC held count.
         if (nak.reason == RBX1_SEQ_GAP || nak.reason == RBX1_UNKNOWN_TYPE) {
@@ -286,7 +310,7 @@ void Link::on_frame(void* ctx, const rbx1_frame* f) {
     w->done = true;
     w->len = f->len;
     std::memcpy(w->payload, f->payload, f->len);
-    self->attribute(w, false);
+    self->attribute_answer(w);
     return true;
   };
   bool ours = take(self->estop_waiting_);

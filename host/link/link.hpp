@@ -143,6 +143,7 @@ class Link {
     std::vector<uint32_t> txs;
     uint32_t events = 0;
     bool resend = false;
+    bool held = false;  // the firmware holds it ahead of a gap (NAK HELD): not lost, not resent until a timeout
     uint8_t len = 0;
     uint8_t payload[RBX1_MAX_PAYLOAD];
   };
@@ -153,6 +154,7 @@ class Link {
   void reader_loop(int fd, int wake_fd);
   static void on_frame(void* ctx, const rbx1_frame* frame);
   void attribute(Waiter* w, bool refused);
+  void attribute_answer(Waiter* w);
   static void on_reject(void* ctx, uint8_t status, uint8_t seq, uint8_t has_seq);
   void port_gone(int err);
   int down_error() const { return gone_error_ ? -gone_error_ : -ENOTCONN; }  // under state_mu_

@@ -25,13 +25,25 @@ typedef struct {
 
 static void mix(pass *p, uint32_t v) { p->hash = (p->hash ^ v) * 16777619u; }
 
+/* Held requests: each one 1..RBX1_WINDOW-1 ahead of the next expected SEQ, no SEQ twice. */
+static void check_held(const rbx1_window *w) {
+  uint8_t i, j;
+  for (i = 0; i < RBX1_HELD_MAX; i++) {
+    if (!w->held[i].used) continue;
+    CHECK(w->synced);
+    CHECK((uint8_t)(w->held[i].seq - w->expect) >= 1u && (uint8_t)(w->held[i].seq - w->expect) < RBX1_WINDOW);
+    for (j = (uint8_t)(i + 1u); j < RBX1_HELD_MAX; j++) CHECK(!w->held[j].used || w->held[j].seq != w->held[i].seq);
+  }
+}
+
 /* The window's invariants for one frame: a duplicate points to the remembered (SEQ, CRC); a new frame becomes the
- * newest entry and sets the order; nothing else changes the window. */
+ * newest entry and sets the order, then the held ones behind it run in SEQ order; a held one is 1..W-1 ahead; an
+ * ESTOP drops every held one; nothing else changes the window. */
 static void window_step(pass *p, const rbx1_frame *f) {
   const rbx1_window_entry *dup = NULL;
   uint8_t last = 0, before_count = p->win.count, before_expect = p->win.expect;
   uint8_t verdict = rbx1_window_accept(&p->win, f, &dup, &last);
-  CHECK(verdict <= RBX1_WIN_UNKNOWN);
+  CHECK(verdict <= RBX1_WIN_HELD);
   CHECK((verdict == RBX1_WIN_UNKNOWN) == (rbx1_request_len(f->type) < 0));
   CHECK(p->win.count <= RBX1_WINDOW);
   if (verdict == RBX1_WIN_DUPLICATE) {
@@ -40,9 +52,24 @@ static void window_step(pass *p, const rbx1_frame *f) {
     rbx1_window_record(&p->win, f->seq, f->crc, (uint8_t)(f->type | 0x80u), f->payload, f->len);
     CHECK(rbx1_window_last_seq(&p->win) == f->seq && p->win.expect == (uint8_t)(f->seq + 1u));
     CHECK(rbx1_window_classify(&p->win, f->seq, f->crc, &dup) == RBX1_WIN_DUPLICATE);
+    for (const rbx1_window_held *h; (h = rbx1_window_release(&p->win)) != NULL;) {
+      CHECK(h->seq == p->win.expect);
+      rbx1_window_record(&p->win, h->seq, h->crc, (uint8_t)(h->type | 0x80u), h->payload,
+                         h->len < RBX1_MAX_REQ_LEN ? h->len : RBX1_MAX_REQ_LEN);
+      mix(p, 0x400u | h->seq);
+    }
+  } else if (verdict == RBX1_WIN_HELD) {
+    uint8_t ahead = (uint8_t)(f->seq - p->win.expect);
+    CHECK(p->win.count == before_count && p->win.expect == before_expect && ahead >= 1u && ahead < RBX1_WINDOW);
+  } else if (verdict == RBX1_WIN_BYPASS) {
+    uint8_t seqs[RBX1_HELD_MAX], n = rbx1_window_drop_held(&p->win, seqs), i;
+    CHECK(n <= RBX1_HELD_MAX);
+    for (i = 0; i < RBX1_HELD_MAX; i++) CHECK(!p->win.held[i].used);
+    for (i = 1; i < n; i++) CHECK((uint8_t)(seqs[i] - p->win.expect) > (uint8_t)(seqs[i - 1] - p->win.expect));
   } else {
     CHECK(p->win.count == before_count && p->win.expect == before_expect);
   }
+  check_held(&p->win);
   mix(p, 0x300u | verdict);
 }
 

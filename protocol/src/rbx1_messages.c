@@ -435,6 +435,7 @@ const char *rbx1_status_name(uint8_t status) {
     case RBX1_EEPROM_ERROR: return "EEPROM_ERROR";
     case RBX1_SEQ_GAP: return "SEQ_GAP";
     case RBX1_SEQ_OLD: return "SEQ_OLD";
+    case RBX1_HELD: return "HELD";
     default: return "?";
   }
 }

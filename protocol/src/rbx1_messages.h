@@ -48,6 +48,7 @@ enum rbx1_status {
   RBX1_EEPROM_ERROR = 13, /* configuration could not be saved */
   RBX1_SEQ_GAP = 14, /* SEQ ahead of the next expected one: an earlier request is missing (NAK; resend in order) */
   RBX1_SEQ_OLD = 15, /* SEQ older than the window, or a used SEQ with other bytes (NAK; never executed) */
+  RBX1_HELD = 16, /* SEQ ahead of a missing request, within the window: received and held, run once the gap is filled (NAK; do not resend) */
 };
 
 /* Firmware states (STATUS.state). */
@@ -144,6 +145,7 @@ const rbx1_key_info *rbx1_key_lookup(uint8_t key);
 #define RBX1_CONFIG_RESET_RESP_LEN 1
 #define RBX1_NAK_LEN 1
 #define RBX1_MAX_RESP_LEN 40 /* the longest response payload */
+#define RBX1_MAX_REQ_LEN 26 /* the longest request payload */
 
 /* Payload structs (host byte order; pack/unpack convert to and from the little-endian wire). */
 typedef struct {

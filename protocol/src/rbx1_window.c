@@ -1,17 +1,29 @@
-/* rbx1_window.c - the receiver's window: SEQ order, duplicates answered from memory, old frames refused. */
+/* rbx1_window.c - the receiver's window: SEQ order, requests ahead of a gap held, duplicates answered from memory,
+ * old frames refused. */
 #include "rbx1_window.h"
 
 #include <string.h>
 
 void rbx1_window_init(rbx1_window *w) {
+  uint8_t i;
   w->count = 0;
   w->newest = 0;
   w->expect = 0;
   w->synced = 0;
+  for (i = 0; i < RBX1_HELD_MAX; i++) w->held[i].used = 0;
+}
+
+/* The held slot of a SEQ, or NULL. */
+static rbx1_window_held *held_of(const rbx1_window *w, uint8_t seq) {
+  uint8_t i;
+  for (i = 0; i < RBX1_HELD_MAX; i++)
+    if (w->held[i].used && w->held[i].seq == seq) return (rbx1_window_held *)&w->held[i];
+  return NULL;
 }
 
 uint8_t rbx1_window_classify(const rbx1_window *w, uint8_t seq, uint16_t crc, const rbx1_window_entry **dup) {
-  uint8_t i;
+  uint8_t i, ahead;
+  const rbx1_window_held *h;
   /* Remembered entries first: a retransmission of the newest one has SEQ expect - 1. */
   for (i = 0; i < w->count; i++) {
     const rbx1_window_entry *e = &w->entry[i];
@@ -21,8 +33,30 @@ uint8_t rbx1_window_classify(const rbx1_window *w, uint8_t seq, uint16_t crc, co
     }
   }
   if (!w->synced || seq == w->expect) return RBX1_WIN_NEW;
-  /* Half the SEQ circle ahead is a gap (a request before it is missing), the other half is the past. */
-  return (uint8_t)(seq - w->expect) < 128u ? RBX1_WIN_GAP : RBX1_WIN_OLD;
+  h = held_of(w, seq);
+  if (h) return h->crc == crc ? RBX1_WIN_HELD : RBX1_WIN_OLD; /* other bytes at a held SEQ: a used SEQ */
+  /* Up to W - 1 ahead is held (the rest of a host's window behind a missing request); further ahead, up to half
+     the SEQ circle, is a gap; the other half is the past. */
+  ahead = (uint8_t)(seq - w->expect);
+  if (ahead < RBX1_WINDOW) return RBX1_WIN_HELD;
+  return ahead < 128u ? RBX1_WIN_GAP : RBX1_WIN_OLD;
+}
+
+/* Keeps a request to run once the gap before it is filled. Every SEQ of the held range has a slot: at most
+   RBX1_HELD_MAX SEQs are ahead within it, and a held one leaves its slot when it runs or is dropped. */
+static void hold(rbx1_window *w, const rbx1_frame *f) {
+  uint8_t i;
+  for (i = 0; i < RBX1_HELD_MAX; i++) {
+    rbx1_window_held *h = &w->held[i];
+    if (h->used) continue;
+    h->used = 1;
+    h->seq = f->seq;
+    h->crc = f->crc;
+    h->type = f->type;
+    h->len = f->len;
+    memcpy(h->payload, f->payload, f->len < RBX1_MAX_REQ_LEN ? f->len : RBX1_MAX_REQ_LEN);
+    return;
+  }
 }
 
 uint8_t rbx1_window_accept(rbx1_window *w, const rbx1_frame *f, const rbx1_window_entry **dup, uint8_t *last_seq) {
@@ -39,7 +73,28 @@ uint8_t rbx1_window_accept(rbx1_window *w, const rbx1_frame *f, const rbx1_windo
     rbx1_window_restart(w);
     return RBX1_WIN_NEW;
   }
+  if (verdict == RBX1_WIN_HELD && !held_of(w, f->seq)) hold(w, f);
   return verdict;
+}
+
+const rbx1_window_held *rbx1_window_release(rbx1_window *w) {
+  rbx1_window_held *h;
+  if (!w->synced) return NULL;
+  h = held_of(w, w->expect);
+  if (h) h->used = 0; /* the bytes stay readable until the next hold */
+  return h;
+}
+
+uint8_t rbx1_window_drop_held(rbx1_window *w, uint8_t *seqs) {
+  uint8_t n = 0, ahead;
+  rbx1_window_held *h;
+  for (ahead = 1; ahead < RBX1_WINDOW; ahead++) {
+    h = held_of(w, (uint8_t)(w->expect + ahead));
+    if (!h) continue;
+    h->used = 0;
+    seqs[n++] = h->seq;
+  }
+  return n;
 }
 
 void rbx1_window_record(rbx1_window *w, uint8_t seq, uint16_t crc, uint8_t type, const uint8_t *payload, uint8_t len) {
@@ -63,8 +118,10 @@ void rbx1_window_record(rbx1_window *w, uint8_t seq, uint16_t crc, uint8_t type,
 }
 
 void rbx1_window_restart(rbx1_window *w) {
+  uint8_t i;
   w->count = 0;
   w->synced = 0;
+  for (i = 0; i < RBX1_HELD_MAX; i++) w->held[i].used = 0;
 }
 
 uint8_t rbx1_window_last_seq(const rbx1_window *w) { return w->count ? w->entry[w->newest].seq : 0xFFu; }

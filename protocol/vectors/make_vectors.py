@@ -204,7 +204,9 @@ def bad_payload_vectors():
 def window_vectors():
     """Requests fed in order to a receiver's window (rbx1_window.c, window.py). Every expected verdict is written by
     hand here; answer_of: a duplicate is answered with the answer recorded for that step; last_seq: what a HELLO
-    that starts a session reports."""
+    that starts a session reports; released: after a new request, the held requests that run behind it, in order
+    (each named by the step that first held it; its answer is recorded as that step index); dropped: after an ESTOP,
+    the SEQs of the held requests it drops (never run)."""
     def req(seq, t=MsgType.STATUS, **fields):
         payload = messages.pack_request(t, **fields) if int(t) in [int(m) for m in MsgType] and t != MsgType.NAK \
             else b""
@@ -217,23 +219,61 @@ def window_vectors():
     V = []
 
     def add(name, description, steps):
-        V.append({"name": name, "description": description,
-                  "steps": [dict(zip(("wire", "verdict", "answer_of", "last_seq"), s)) for s in steps]})
+        keys = ("wire", "verdict", "answer_of", "last_seq")
+        out = []
+        for s in steps:
+            extra = s[-1] if isinstance(s[-1], dict) else {}
+            out.append({**dict(zip(keys, s[:-1] if isinstance(s[-1], dict) else s)), **extra})
+        V.append({"name": name, "description": description, "steps": out})
 
-    add("power_up", "after power-up the first request is in order whatever its SEQ; then strictly SEQ + 1",
-        [(req(200), "new"), (req(201), "new"), (req(201), "duplicate", 1), (move(203, 5), "gap"),
-         (move(199, 5), "old"), (req(200), "duplicate", 0), (req(202), "new")])
+    add("power_up", "after power-up the first request is in order whatever its SEQ; then strictly SEQ + 1; a request "
+        "ahead of the next one is held and runs behind it; one behind the window is the past",
+        [(req(200), "new"), (req(201), "new"), (req(201), "duplicate", 1), (move(203, 5), "held"),
+         (move(199, 5), "old"), (req(200), "duplicate", 0), (req(202), "new", {"released": [3]}),
+         (move(203, 5), "duplicate", 3)])
     add("window_of_8", "the last 8 requests are remembered; older ones are refused, never run again",
         [(move(10 + i, i), "new") for i in range(10)] +
         [(move(12, 2), "duplicate", 2), (move(11, 1), "old"), (move(10, 0), "old"), (move(19, 9), "duplicate", 9),
          (move(20, 10), "new"), (move(12, 2), "old"), (move(13, 3), "duplicate", 3)])
-    add("seq_wraps", "SEQ wraps at 256; 1..127 ahead of the expected SEQ is a gap, 128..255 ahead is the past",
+    add("seq_wraps", "SEQ wraps at 256; 1..7 ahead of the expected SEQ is held, 8..127 ahead a gap, 128..255 ahead "
+        "the past",
         [(req(250 + i if i < 6 else i - 6), "new") for i in range(9)] +
-        [(req(254), "duplicate", 4), (req(1), "duplicate", 7), (req(4), "gap"), (req(130), "gap"), (req(131), "old"),
-         (req(3), "new")])
+        [(req(254), "duplicate", 4), (req(1), "duplicate", 7), (req(4), "held"), (req(10), "held"), (req(11), "gap"),
+         (req(130), "gap"), (req(131), "old"), (req(3), "new", {"released": [11]}), (req(5), "new")])
+    add("hold_and_fill", "requests 1..7 ahead of a missing one are held (not run) and answered HELD, a copy of a held "
+        "one HELD again (kept once), other bytes at a held SEQ refused; the missing one runs, then the held ones in "
+        "SEQ order, each once; their copies are then answered from memory",
+        [(req(10), "new"), (move(12, 2), "held"), (move(13, 3), "held"), (move(12, 2), "held"), (move(12, 9), "old"),
+         (move(19, 9), "gap"), (move(18, 8), "held"), (move(11, 1), "new", {"released": [1, 2]}),
+         (move(12, 2), "duplicate", 1), (move(13, 3), "duplicate", 2), (move(14, 4), "new"),
+         (move(15, 5), "new"), (move(16, 6), "new"), (move(17, 7), "new", {"released": [6]}),
+         (move(18, 8), "duplicate", 6), (move(19, 9), "new")])
+    add("held_in_any_order", "held requests arriving in any order run in SEQ order as each gap before them is filled",
+        [(req(0), "new"), (move(7, 7), "held"), (move(5, 5), "held"), (move(3, 3), "held"), (move(2, 2), "held"),
+         (move(1, 1), "new", {"released": [4, 3]}), (move(4, 4), "new", {"released": [2]}),
+         (move(6, 6), "new", {"released": [1]}), (move(8, 8), "new")])
+    add("window_full_of_held", "a whole window behind one missing request: 7 held, the 8th ahead is a gap; the "
+        "missing one releases all 7",
+        [(req(100), "new")] + [(move(102 + i, i), "held") for i in range(7)] + [(move(109, 7), "gap"),
+         (move(101, 9), "new", {"released": list(range(1, 8))}), (move(102, 0), "duplicate", 1),
+         (move(109, 7), "new")])
+    add("held_then_hello", "a HELLO that starts a session forgets the held requests: none runs",
+        [(req(20), "new"), (move(22, 2), "held"), (move(23, 3), "held"), (hello(20), "new", None, 20),
+         (req(21), "new", {"released": []}), (move(22, 2), "new"), (move(23, 3), "new")])
+    add("held_then_estop", "an ESTOP drops the held requests (never run; the firmware NAKs each SEQ_GAP after the "
+        "ESTOP's answer); sent again, they are held again and run once the gap is filled",
+        [(req(30), "new"), (move(33, 3), "held"), (move(32, 2), "held"),
+         (req(31, MsgType.ESTOP), "bypass", {"dropped": [32, 33]}), (req(31, MsgType.ESTOP), "bypass", {"dropped": []}),
+         (move(32, 2), "held"), (req(31), "new", {"released": [5]}), (move(33, 3), "new")])
+    add("held_then_stop", "a STOP takes its place in the order like any request: held ahead of a gap, it runs after "
+        "the requests before it and before those after it; requests held behind a STOP that fills a gap run after it",
+        [(req(40), "new"), (move(42, 2), "held"), (req(43, MsgType.STOP), "held"), (move(44, 4), "held"),
+         (move(41, 1), "new", {"released": [1, 2, 3]}), (req(45), "new"), (move(47, 7), "held"),
+         (req(46, MsgType.STOP), "new", {"released": [6]})])
     add("hello_restarts", "a HELLO that is not a duplicate forgets the window and its SEQ sets the order",
         [(req(5), "new"), (req(6), "new"), (hello(100), "new", None, 6), (req(6), "old"), (hello(100), "duplicate", 2),
-         (req(101), "new"), (hello(50), "new", None, 101), (req(51), "new"), (req(30), "old"), (req(53), "gap")])
+         (req(101), "new"), (hello(50), "new", None, 101), (req(51), "new"), (req(30), "old"), (req(53), "held"),
+         (req(60), "gap")])
     add("hello_of_a_new_host", "a HELLO with the bytes of a remembered one that other requests followed is a new host "
         "starting at the same SEQ (a tool run twice), not a retransmission: a new session, and its requests run",
         [(hello(0), "new", None, 255), (req(1), "new"), (hello(0), "new", None, 1), (req(1), "new"),
@@ -250,11 +290,11 @@ def window_vectors():
          (frame.encode(45, 0x33, b"").hex(), "unknown"), (frame.encode(30, 0x33, b"").hex(), "unknown"),
          (req(41), "new"), (req(41), "duplicate", 7), (frame.encode(42, 0x33, b"").hex(), "unknown"),
          (req(42), "new"), (hello(90), "new", None, 42), (frame.encode(91, 0x40, b"").hex(), "unknown"),
-         (req(91), "new"), (req(93), "gap")])
+         (req(91), "new"), (req(93), "held")])
     # The Python window agrees (the C test checks the same file).
     from rbx1proto.window import Window
     for v in V:
-        w, answers = Window(), {}
+        w, first_held = Window(), {}
         for i, st in enumerate(v["steps"]):
             f = frame.Decoder().feed(bytes.fromhex(st["wire"]))[0]
             verdict, answer, last = w.accept(f)
@@ -263,8 +303,20 @@ def window_vectors():
                 assert answer == st["answer_of"], (v["name"], i, answer)
             if st.get("last_seq") is not None:
                 assert last == st["last_seq"], (v["name"], i, last)
+            if verdict == "held":
+                first_held.setdefault(f.seq, i)
+            released, dropped = [], []
             if verdict == "new":
                 w.record(f.seq, f.crc, i)
+                while (h := w.release()) is not None:
+                    released.append(first_held.pop(h.seq))
+                    w.record(h.seq, h.crc, released[-1])
+            if verdict == "bypass":
+                dropped = w.drop_held()
+                for s in dropped:
+                    first_held.pop(s)
+            assert released == st.get("released", []), (v["name"], i, released)
+            assert dropped == st.get("dropped", []), (v["name"], i, dropped)
     return V
 
 
@@ -286,9 +338,11 @@ def main():
                               "status BAD_LENGTH, except ESTOP, which stops the arm whatever its length)", "vectors": bad_payload_vectors()},
         "crc.json": {"description": "CRC-16/CCITT-FALSE of data (hex)", "vectors": crc_vectors()},
         "window.json": {"description": "requests fed in order to a receiver's window, with the expected verdict "
-                        "(new, duplicate, gap, old, bypass, unknown); a new request's answer is recorded as its step index, "
-                        "answer_of names the step whose answer a duplicate gets, last_seq what a session-starting "
-                        "HELLO reports", "vectors": window_vectors()},
+                        "(new, duplicate, held, gap, old, bypass, unknown); a new request's answer is recorded as its step "
+                        "index, answer_of names the step whose answer a duplicate gets, last_seq what a "
+                        "session-starting HELLO reports, released the steps whose held requests run after a new one "
+                        "(in order; each answer recorded as that step's index), dropped the SEQs an ESTOP drops from "
+                        "the hold", "vectors": window_vectors()},
     }
     for name, doc in docs.items():
         with open(os.path.join(HERE, name), "w") as f:

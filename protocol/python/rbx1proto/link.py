@@ -1,5 +1,5 @@
 """link.py - an RBX1 link over a serial port (pyserial): requests one at a time or a stream with a window of them in
-flight (go-back-N retransmission), SEQ tracking, HELLO."""
+flight (selective repeat: requests held ahead of a lost one are not resent), SEQ tracking, HELLO."""
 import time
 
 from . import frame, messages
@@ -78,14 +78,17 @@ class Link:
     def stream(self, requests):
         """Sends [(msg_type, fields), ...] in order with up to self.window in flight and returns their responses (a
         list of dicts, in order). Retransmission (PROTOCOL.md "Window"): the firmware answers the frames it receives
-        in order, so an event (an answer, or a NAK SEQ_GAP/UNKNOWN_TYPE: frames whose CRC held, so their SEQ is the
-        request's; BAD_CRC and BAD_LENGTH NAKs are not counted) caused by one copy of a request shows that every unanswered request whose latest copy went out before that copy has lost it (the
-        frame or its answer): those are sent again at once, and so is a NAKed request when the NAK is about its
-        latest copy. Each event is attributed to a copy by counting (the k-th event naming a request comes from its
-        k-th copy or a later one), never by timing. When the oldest unanswered request has had no answer for the
-        timeout, every unanswered one is sent again from the oldest (go-back-N). The firmware answers those it had
-        executed from its window. Raises LinkError after `retries` timeouts without progress, or on a NAK SEQ_OLD
-        (resending cannot cure it)."""
+        in order, so an event (an answer, or a NAK HELD/SEQ_GAP/UNKNOWN_TYPE: frames whose CRC held, so their SEQ is
+        the request's; BAD_CRC and BAD_LENGTH NAKs are not counted) caused by one copy of a request shows that every
+        unanswered request whose latest copy went out before that copy, and that is not held, has lost it (the frame
+        or its answer): those are sent again at once, and so is a request NAKed SEQ_GAP/UNKNOWN_TYPE when the NAK is
+        about its latest copy. A NAK HELD says the firmware holds that request and runs it once the gap before it is
+        filled: it is not sent again (its answer comes when it runs; an answer of a held request says nothing of the
+        others). Each event is attributed to a copy by counting (the k-th event naming a request comes from its k-th
+        copy or a later one), never by timing. When the oldest unanswered request has had no answer for the timeout,
+        every unanswered one is sent again from the oldest, held ones included. The firmware answers those it had
+        executed from its window, and held ones HELD again. Raises LinkError after `retries` timeouts without
+        progress, or on a NAK SEQ_OLD (resending cannot cure it)."""
         if self.resync:
             self.hello()
         frames = []
@@ -98,6 +101,7 @@ class Link:
         sent_at = [0.0] * n      # the latest copy's time (the timeout)
         txs = [[] for _ in range(n)]  # every copy's place in the order of all copies written
         events = [0] * n         # answers and NAKs naming the request (the k-th is about copy k or later)
+        held = [False] * n       # the firmware said it holds the request (NAK HELD): not lost, not to resend
         tx = 0
         base = nxt = tries = 0
 
@@ -130,7 +134,7 @@ class Link:
                 reason = None
                 if ev.type == MsgType.NAK:
                     reason = messages.unpack_nak(ev.payload)["reason"] if len(ev.payload) == 1 else None
-                    if reason not in (Status.SEQ_GAP, Status.UNKNOWN_TYPE, Status.SEQ_OLD):
+                    if reason not in (Status.HELD, Status.SEQ_GAP, Status.UNKNOWN_TYPE, Status.SEQ_OLD):
                         # BAD_CRC, BAD_LENGTH: its SEQ was read from damaged bytes and may name another request, so
                         # it is not counted; naming the oldest unanswered one it sends that again (at worst a copy
                         # answered from the firmware's memory).
@@ -143,7 +147,10 @@ class Link:
                     if reason == Status.SEQ_OLD:
                         self.resync = True
                         raise LinkError(f"{frames[i][0].name} seq {ev.seq}: NAK {Status(reason).name}")
-                    if copy == txs[i][-1]:
+                    held[i] = reason == Status.HELD  # a SEQ_GAP after HELD: the firmware dropped it (ESTOP)
+                    if held[i]:
+                        again.discard(i)
+                    elif copy == txs[i][-1]:
                         again.add(i)  # its latest copy was refused
                 else:
                     try:
@@ -151,10 +158,19 @@ class Link:
                     except ValueError as e:
                         raise LinkError(f"malformed response {ev.type:#04x} seq {ev.seq}: {e}") from None
                     again.discard(i)
-                # Answers come in frame order: an unanswered request whose latest copy went out before this copy
-                # lost it (the frame, or its answer).
+                    # The firmware runs requests in SEQ order: every unanswered request before this one ran, and
+                    # its answer (sent before this one) was lost. A held request's answer follows the answer of the
+                    # request that filled the gap, not its own copy: it tells this, and nothing by copies.
+                    for j in range(base, i):
+                        if results[j] is None and (held[j] or held[i]):
+                            held[j] = False
+                            again.add(j)
+                    if held[i]:
+                        continue
+                # Answers come in frame order: an unanswered request, not held, whose latest copy went out before
+                # this copy lost it (the frame, or its answer).
                 for j in range(base, nxt):
-                    if j != i and results[j] is None and txs[j][-1] < copy:
+                    if j != i and results[j] is None and not held[j] and txs[j][-1] < copy:
                         again.add(j)
             if results[base] is not None:
                 while base < nxt and results[base] is not None:
@@ -237,8 +253,8 @@ class Link:
                     return messages.unpack_response(want & 0x7F, ev.payload)
                 except ValueError as e:
                     raise LinkError(f"malformed response {want:#04x} seq {seq}: {e}") from None
-            if ev.type == MsgType.NAK:
-                nak = True
+            if ev.type == MsgType.NAK and ev.payload != messages.pack_nak(Status.HELD):
+                nak = True  # HELD: the firmware keeps it until the gap before it is filled; wait for the answer
         return "nak" if nak else None
 
 

@@ -42,6 +42,7 @@ class Status(enum.IntEnum):
     EEPROM_ERROR = 13
     SEQ_GAP = 14
     SEQ_OLD = 15
+    HELD = 16
 
 
 STATUS_TEXT = {
@@ -61,6 +62,7 @@ STATUS_TEXT = {
     Status.EEPROM_ERROR: 'configuration could not be saved',
     Status.SEQ_GAP: 'SEQ ahead of the next expected one: an earlier request is missing (NAK; resend in order)',
     Status.SEQ_OLD: 'SEQ older than the window, or a used SEQ with other bytes (NAK; never executed)',
+    Status.HELD: 'SEQ ahead of a missing request, within the window: received and held, run once the gap is filled (NAK; do not resend)',
 }
 
 

@@ -1,16 +1,19 @@
-"""window.py - the receiver's window (PROTOCOL.md "Window"), as rbx1_window.c: SEQ order, duplicates answered from
-memory over the last WINDOW requests, gaps and old frames refused. The vectors check both implementations."""
+"""window.py - the receiver's window (PROTOCOL.md "Window"), as rbx1_window.c: SEQ order, requests ahead of a gap
+held and run once it is filled (selective repeat), duplicates answered from memory over the last WINDOW requests,
+further gaps and old frames refused. The vectors check both implementations."""
 from .messages import MsgType, request_len
 
 WINDOW = 8  # requests a host may keep in flight; the firmware remembers this many (HELLO reports it)
+HELD_MAX = WINDOW - 1  # requests held ahead of a missing one: SEQ expect + 1 .. expect + WINDOW - 1
 
-NEW, DUPLICATE, GAP, OLD, BYPASS, UNKNOWN = "new", "duplicate", "gap", "old", "bypass", "unknown"
+NEW, DUPLICATE, GAP, OLD, BYPASS, UNKNOWN, HELD = "new", "duplicate", "gap", "old", "bypass", "unknown", "held"
 
 
 class Window:
     def __init__(self, size=WINDOW):
         self.size = size
         self.entries = []  # (seq, crc, answer), oldest first
+        self.held = {}     # seq -> the frame held ahead of a gap, not run yet
         self.expect = 0
         self.synced = False
 
@@ -21,12 +24,19 @@ class Window:
                 return DUPLICATE, answer
         if not self.synced or seq == self.expect:
             return NEW, None
-        return (GAP if (seq - self.expect) & 0xFF < 128 else OLD), None
+        if seq in self.held:
+            return (HELD if self.held[seq].crc == crc else OLD), None  # other bytes at a held SEQ: a used SEQ
+        ahead = (seq - self.expect) & 0xFF
+        if ahead < self.size:
+            return HELD, None
+        return (GAP if ahead < 128 else OLD), None
 
     def accept(self, frame):
-        """(verdict, answer, last_seq): ESTOP bypasses; a TYPE of no request (unknown ids, NAK, responses) is UNKNOWN
-        whatever its SEQ (NAK UNKNOWN_TYPE, no place in the order); a HELLO that is not a duplicate starts a new session (last_seq
-        is then the SEQ answered before it, else None); anything else is classified."""
+        """(verdict, answer, last_seq): ESTOP bypasses (the caller then drops the held requests); a TYPE of no request
+        (unknown ids, NAK, responses) is UNKNOWN whatever its SEQ (NAK UNKNOWN_TYPE, no place in the order); a HELLO
+        that is not a duplicate starts a new session (last_seq is then the SEQ answered before it, else None); a
+        request 1..size-1 ahead of the next expected SEQ is held (HELD; a copy of a held one is HELD again); anything
+        else is classified."""
         if frame.type == MsgType.ESTOP:
             return BYPASS, None, None
         if request_len(frame.type) < 0:
@@ -39,7 +49,20 @@ class Window:
             last = self.last_seq()
             self.restart()
             return NEW, None, last
+        if verdict == HELD:
+            self.held.setdefault(frame.seq, frame)
         return verdict, answer, None
+
+    def release(self):
+        """After a request in order was run and recorded: the held frame now next in order (taken out), or None. The
+        caller runs and records it, and asks again until None."""
+        return self.held.pop(self.expect, None) if self.synced else None
+
+    def drop_held(self):
+        """ESTOP: forgets every held frame, none run; their SEQs in SEQ order (each is NAKed SEQ_GAP)."""
+        seqs = sorted(self.held, key=lambda s: (s - self.expect) & 0xFF)
+        self.held = {}
+        return seqs
 
     def record(self, seq, crc, answer):
         self.entries = (self.entries + [(seq, crc, answer)])[-self.size:]
@@ -48,6 +71,7 @@ class Window:
 
     def restart(self):
         self.entries = []
+        self.held = {}
         self.synced = False
 
     def last_seq(self):

@@ -21,8 +21,8 @@ TIMEOUT = 0.25
 
 
 class Peer(threading.Thread):
-    """A firmware stand-in written with the Python protocol: the receiver's window (order, at-most-once execution
-    with remembered answers), and knobs to drop requests, NAK them, lose or delay responses, add line noise, or
+    """A firmware stand-in written with the Python protocol: the receiver's window (order, requests ahead of a gap
+    held, at-most-once execution with remembered answers), and knobs to drop requests, NAK them, lose or delay responses, add line noise, or
     corrupt received bytes."""
 
     def __init__(self, master):
@@ -37,6 +37,7 @@ class Peer(threading.Thread):
         self.window = Window()
         self.moves = []         # MOVE targets[0] in the order executed
         self.refused = []       # (seq, reason) of NAKs for gaps and old frames
+        self.held = []          # SEQs answered NAK HELD (copies of a held request included)
         self.corrupt = 0.0      # probability of flipping each received byte
         self.rng = random.Random(7)
         self.drop = 0           # ignore the next N requests entirely
@@ -83,6 +84,10 @@ class Peer(threading.Thread):
         if verdict == "unknown":
             self.send(frame.encode(f.seq, MsgType.NAK, messages.pack_nak(Status.UNKNOWN_TYPE)))
             return
+        if verdict == "held":
+            self.held.append(f.seq)
+            self.send(frame.encode(f.seq, MsgType.NAK, messages.pack_nak(Status.HELD)))
+            return
         if verdict == "duplicate":
             self.duplicates += 1  # a retransmission: answer again, do not execute again
             response = cached
@@ -105,6 +110,13 @@ class Peer(threading.Thread):
         if self.nak_next_seq:  # a BAD_CRC NAK whose SEQ byte was damaged into the next request's
             self.send(frame.encode((f.seq + 1) & 0xFF, MsgType.NAK, messages.pack_nak(Status.BAD_CRC)))
         self.send(self.noise + response)
+        if verdict == "bypass":  # ESTOP: the held requests are dropped, never run, each NAKed SEQ_GAP
+            for seq in self.window.drop_held():
+                self.send(frame.encode(seq, MsgType.NAK, messages.pack_nak(Status.SEQ_GAP)))
+        while verdict == "new" and (h := self.window.release()) is not None:  # a filled gap: the held ones run
+            response = frame.encode(h.seq, h.type | 0x80, self.execute(h, None))
+            self.window.record(h.seq, h.crc, response)
+            self.send(response)
 
     def execute(self, f, last_seq):
         t = MsgType(f.type)
@@ -306,14 +318,14 @@ def test_stream_window_capped_by_the_host(pty_pair):
     assert peer.moves == list(range(10))
 
 
-def test_stream_goes_back_after_a_dropped_request(pty_pair):
+def test_stream_resends_only_the_missing_one_after_a_dropped_request(pty_pair):
     link, peer = pty_pair
     link.hello()
     stream_moves(link, 5)
-    peer.drop = 1  # the next request vanishes: the ones after it are NAKed SEQ_GAP until it is sent again
+    peer.drop = 1  # the next request vanishes: the ones after it are held (NAK HELD) until it is sent again
     stream_moves(link, 20, start=5)
     assert peer.moves == list(range(25)), "executed out of order or twice"
-    assert any(reason == Status.SEQ_GAP for _, reason in peer.refused)
+    assert peer.held[:7] == [(link.seq - 19 + i) & 0xFF for i in range(7)] and not peer.refused
     assert link.retransmissions > 0
 
 
@@ -377,17 +389,39 @@ def test_unknown_type_takes_no_seq(pty_pair):
 
 def test_stream_resends_only_what_the_answers_show_lost(pty_pair):
     # Answers and NAKs come back in the order of the copies written: a lost answer costs one resend of its request,
-    # a lost request one resend of it and of each follower NAKed SEQ_GAP, nothing more (a timeout resends all).
+    # a lost request one resend of it alone (its followers are held: NAK HELD), nothing more (a timeout resends all).
     link, peer = pty_pair
     link.timeout = 2.0  # no timeout in this test, however loaded the machine
     link.hello()
     peer.lose = 1  # the first answer is lost
     stream_moves(link, 12)
     assert peer.moves == list(range(12)) and link.retransmissions == 1
-    peer.drop = 1  # the next stream's first frame vanishes: its 7 followers in the window are gaps
+    peer.drop = 1  # the next stream's first frame vanishes: its 7 followers in the window are held
     rs = stream_moves(link, 12, start=12)
     assert [r["status"] for r in rs] == [Status.OK] * 12
-    assert peer.moves == list(range(24)) and len(peer.refused) == 7 and link.retransmissions == 1 + 8
+    assert peer.moves == list(range(24)) and len(peer.held) == 7 and not peer.refused
+    assert link.retransmissions == 1 + 1, "only the missing request is sent again"
+
+
+def test_stream_held_then_estop_runs_nothing_held_and_resends(pty_pair):
+    # The firmware drops held requests on ESTOP (NAK SEQ_GAP each): the stream sends them again and each runs
+    # once, in order, after the missing one.
+    link, peer = pty_pair
+    link.timeout = 2.0  # no timeout in this test, however loaded the machine
+    link.hello()
+    peer.drop = 1
+    orig = peer.handle
+
+    def estop_after_held(f):  # an ESTOP arrives (another writer) right after the first request is held
+        orig(f)
+        if peer.held and not getattr(peer, "estopped", False):
+            peer.estopped = True
+            orig(frame.Decoder().feed(frame.encode(f.seq, MsgType.ESTOP, b""))[0])
+    peer.handle = estop_after_held
+    rs = stream_moves(link, 6)
+    assert [r["status"] for r in rs] == [Status.OK] * 6
+    assert peer.moves == list(range(6)), "a dropped held request ran, or ran twice"
+    assert peer.executed.count(MsgType.ESTOP) == 1
 
 
 def test_stream_bad_crc_naks_naming_other_requests_resend_nothing(pty_pair):

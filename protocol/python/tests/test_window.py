@@ -3,14 +3,14 @@ import pytest
 from conftest import load_vectors
 
 from rbx1proto import frame
-from rbx1proto.window import WINDOW, Window
+from rbx1proto.window import HELD_MAX, WINDOW, Window
 
 VECTORS = load_vectors("window.json")
 
 
 @pytest.mark.parametrize("v", VECTORS, ids=[v["name"] for v in VECTORS])
 def test_window_vectors(v):
-    w = Window()
+    w, first_held = Window(), {}
     for i, st in enumerate(v["steps"]):
         (f,) = frame.Decoder().feed(bytes.fromhex(st["wire"]))
         verdict, answer, last = w.accept(f)
@@ -19,12 +19,41 @@ def test_window_vectors(v):
             assert answer == st["answer_of"], f"step {i}"
         if st.get("last_seq") is not None:
             assert last == st["last_seq"], f"step {i}"
+        if verdict == "held":
+            first_held.setdefault(f.seq, i)
+        released, dropped = [], []
         if verdict == "new":
             w.record(f.seq, f.crc, i)
+            while (h := w.release()) is not None:
+                released.append(first_held.pop(h.seq))
+                w.record(h.seq, h.crc, released[-1])
+        if verdict == "bypass":
+            dropped = w.drop_held()
+            for s in dropped:
+                first_held.pop(s)
+        assert released == st.get("released", []), f"step {i}"
+        assert dropped == st.get("dropped", []), f"step {i}"
+
+
+def test_held_frames_keep_their_bytes():
+    """A held request runs with its own frame (type, payload), once: release() hands it out a single time."""
+    w = Window()
+    (a,) = frame.Decoder().feed(frame.encode(5, 0x02, b""))
+    (m,) = frame.Decoder().feed(frame.encode(7, 0x04, bytes(range(26))))
+    assert w.accept(a)[0] == "new"
+    w.record(5, a.crc, "a")
+    assert w.accept(m)[0] == "held" and w.accept(m)[0] == "held"
+    assert w.release() is None
+    w.record(6, 0x1234, "b")
+    h = w.release()
+    assert (h.seq, h.type, h.payload) == (7, 0x04, bytes(range(26)))
+    assert w.release() is None
 
 
 def test_window_size_matches_the_c_library():
     import os
     src = os.path.join(os.path.dirname(__file__), "..", "..", "src", "rbx1_window.h")
     with open(src) as fh:
-        assert f"#define RBX1_WINDOW {WINDOW}\n" in fh.read()
+        text = fh.read()
+    assert f"#define RBX1_WINDOW {WINDOW}\n" in text
+    assert HELD_MAX == WINDOW - 1 and "#define RBX1_HELD_MAX (RBX1_WINDOW - 1)\n" in text

@@ -1,5 +1,6 @@
 """checks_link.py - handshake, framing, NAKs, resynchronisation after garbage, the window (order, at-most-once
-execution over the last WINDOW requests, gaps and old frames refused, streams)."""
+execution over the last WINDOW requests, requests ahead of a gap held and run in order once it is filled, old
+frames refused, streams)."""
 import random
 import time
 
@@ -289,18 +290,54 @@ def window_duplicates_never_rerun(b):
     expect(s["position"] == [25, 0, 0, 0, 0, 0], f"position {s['position']}: a duplicate ran again")
 
 
-@check("window_gap_refused")
-def window_gap_refused(b):
-    # A request ahead of the next expected SEQ (one before it lost): NAK SEQ_GAP, not run; sent in order, both run.
+@check("window_gap_held")
+def window_gap_held(b):
+    # PROTOCOL.md "Window": requests ahead of a missing one, within the window, are held (NAK HELD), not run; a copy
+    # of a held one is answered HELD again and kept once; one a whole window ahead is a gap (NAK SEQ_GAP). The
+    # missing one runs, then the held ones in SEQ order, each once. Targets 30, 60, 45: run out of order or twice,
+    # the joint would end elsewhere or moves_accepted would show it.
+    w = b.info["window"]
+    before = b.status()
+    seqs, wires = move_frames(b, [30, 60, 45])
+    beyond = (seqs[0] + w) & 0xFF
+    _, far = b.frame(MsgType.MOVE, seq=beyond, target=[999, 0, 0, 0, 0, 0], duration_ms=0)
+    ev = b.exchange_raw(wires[2] + wires[1] + wires[1] + far, until=lambda e: len(naks(e)) >= 4)
+    want = [(seqs[2], Status.HELD), (seqs[1], Status.HELD), (seqs[1], Status.HELD), (beyond, Status.SEQ_GAP)]
+    expect(naks(ev) == want, f"held and beyond: expected NAKs {want}, got {ev}")
+    expect(not [e for e in ev if isinstance(e, frame.Frame) and e.type & 0x80], f"a held request was answered: {ev}")
+    ev = b.exchange_raw(wires[0], until=lambda e: all(responses(e, MsgType.MOVE, q) for q in seqs))
+    order = [e.seq for e in ev if isinstance(e, frame.Frame) and e.type == MsgType.MOVE | 0x80]
+    expect(order == seqs, f"the filled gap: expected answers for SEQs {seqs} in that order, got {ev}")
+    expect(all(responses(ev, MsgType.MOVE, q)[0].payload[0] == Status.OK for q in seqs if responses(ev, MsgType.MOVE, q)),
+           f"not accepted: {ev}")
+    s = b.wait_idle()
+    expect(s["moves_accepted"] == (before["moves_accepted"] + 3) & 0xFFFF, f"moves_accepted: {brief(s)}, expected +3")
+    expect(s["position"][0] == 45, f"position {s['position']}: held requests ran out of order")
+
+
+@check("window_held_dropped_by_estop")
+def window_held_dropped_by_estop(b):
+    # An ESTOP drops the held requests, never run: after its answer each is NAKed SEQ_GAP. Filling the gap then
+    # runs the missing one alone (refused: the e-stop latched); the dropped one, sent again, runs once.
     before = b.status()
     seqs, wires = move_frames(b, [30, 60])
-    ev = b.exchange_raw(wires[1], until=lambda e: naks(e) or responses(e, MsgType.MOVE, seqs[1]))
-    expect(naks(ev) == [(seqs[1], Status.SEQ_GAP)], f"expected NAK SEQ_GAP seq {seqs[1]}, got {ev}")
-    ev = b.exchange_raw(b"".join(wires), until=lambda e: all(responses(e, MsgType.MOVE, q) for q in seqs))
-    expect(all(len(responses(ev, MsgType.MOVE, q)) == 1 for q in seqs), f"in order: {ev}")
-    s = b.wait_idle()
-    expect(s["moves_accepted"] == (before["moves_accepted"] + 2) & 0xFFFF, f"moves_accepted: {brief(s)}")
-    expect(s["position"][0] == 60, f"position {s['position']}")
+    ev = b.exchange_raw(wires[1], until=lambda e: naks(e))
+    expect(naks(ev) == [(seqs[1], Status.HELD)], f"expected NAK HELD seq {seqs[1]}, got {ev}")
+    eseq, estop = b.frame(MsgType.ESTOP)
+    ev = b.exchange_raw(estop, until=lambda e: responses(e, MsgType.ESTOP, eseq) and naks(e))
+    kinds = [(e.type, e.seq) for e in ev if isinstance(e, frame.Frame)]
+    expect(kinds == [(MsgType.ESTOP | 0x80, eseq), (MsgType.NAK, seqs[1])] and naks(ev) == [(seqs[1], Status.SEQ_GAP)],
+           f"ESTOP with a held request: expected its answer then NAK SEQ_GAP seq {seqs[1]}, got {ev}")
+    # The missing one and the dropped one again: exactly one answer each (the dropped one, had it stayed held,
+    # would be answered when the gap is filled and again as a duplicate).
+    ev = b.exchange_raw(wires[0] + wires[1], until=lambda e: len(responses(e, MsgType.MOVE, seqs[1])) >= 2)
+    for q in seqs:
+        r = responses(ev, MsgType.MOVE, q)
+        expect(len(r) == 1 and r[0].payload[0] == Status.FAULT_ACTIVE,
+               f"seq {q} after the ESTOP: expected one answer FAULT_ACTIVE, got {ev}")
+    s = b.status()
+    expect(s["moves_accepted"] == before["moves_accepted"], f"moves_accepted: {brief(s)}: a dropped request ran")
+    expect(s["position"] == before["position"], f"position {s['position']}: a dropped request moved the arm")
 
 
 @check("window_stream")
