@@ -13,10 +13,13 @@ struct SplitOptions {
                                      // under half the body's width)
   double max_solidity = 0.93;      // regions more convex than this are one object (no neck to cut)
   int min_area_px = 40;            // each body at least this big
+  double min_cut_depth_px = 2.5;   // both ends of a cut at least this deep in a concavity of the outline
+                                   // (their distance to the region's convex hull)
 };
 
 // mask: CV_8U region (255 inside). Returns the number of bodies found (1: not split); when > 1, `parts`
-// (CV_32S, mask's size) holds 1..n for the bodies and 0 outside. Each cut runs along the neck's watershed.
+// (CV_32S, mask's size) holds 1..n for the bodies and 0 outside. Each cut runs along the neck's watershed and
+// has both ends in concavities of the outline (else its two bodies are one).
 int split_touching(const cv::Mat& mask, const SplitOptions& opt, cv::Mat& parts);
 
 }  // namespace rbx1::vision

@@ -85,5 +85,26 @@ TEST(Split, PersistenceRejectsShallowWaists) {
   EXPECT_EQ(right, 2);
 }
 
+TEST(Split, AWaistFlushWithOneSideIsNotAContact) {
+  // stuff.jpg's lighter in outline: a head (48 x 16 px) joined to its body (48 x 100 px) by a 6 px strip
+  // along the right side only (the band under the head is at the table's level). The strip is a neck under
+  // half the head's height, so persistence alone cut the head off; the cut's right end is on the straight
+  // side (no concavity there), so it is one object.
+  const double x = 300, y = 150;
+  Poly lighter = {{x, y}, {x + 48, y}, {x + 48, y + 130}, {x, y + 130}, {x, y + 30}, {x + 42, y + 30}, {x + 42, y + 16},
+                  {x, y + 16}};
+  // Beside it, two bars touching corner to side: both ends of that cut are in concavities.
+  Detection d = run({lighter, rectangle({120, 200}, 120, 30, 0), rectangle({150, 274}, 120, 30, 60)});
+  const DetectedObject* l = near(d, {x + 24.3, y + 69.5}, 6);
+  ASSERT_TRUE(l);
+  EXPECT_FALSE(l->touching);
+  EXPECT_NEAR(l->geometry.area_px, 48 * 130 - 42 * 14, 150);
+  EXPECT_NEAR(std::abs(l->pose.orientation_deg), 90, 3);
+  int touching = 0;
+  for (const auto& o : d.objects) touching += o.touching;
+  EXPECT_EQ(d.objects.size(), 3u);
+  EXPECT_EQ(touching, 2);
+}
+
 }  // namespace
 }  // namespace rbx1::vision
