@@ -33,6 +33,9 @@ struct LightFit {
 // (gain outside 0.5-2, offset beyond 64 levels, under 20 % of the table unchanged) returns gain 1, offset 0.
 LightFit compensate_light(const cv::Mat& gray, const cv::Mat& background_gray, cv::Mat* corrected);
 
+// The k-th smallest (from 0) of non-negative floats (the fit's residuals), as std::nth_element finds it.
+float kth_smallest(const std::vector<float>& v, size_t k);
+
 // Known background (an image of the empty scene, same size). false + error when the sizes differ.
 bool contrast_from_background(const cv::Mat& gray, const cv::Mat& background_gray, Polarity objects, double min_contrast,
                               Contrast& out, std::string& error);

@@ -19,6 +19,46 @@ int root_of(std::vector<Run>& runs, int i) {
   return i;
 }
 
+// Bit k of the result is the top bit of byte k of the 8 bytes at m: 8 mask pixels (0 or 255) in 8 bits.
+uint64_t pack8(const uchar* m) {
+  uint64_t v;
+  std::memcpy(&v, m, 8);
+  return ((v & 0x8080808080808080ULL) * 0x0002040810204081ULL) >> 56;
+}
+
+// Pixel x of a row of nw * 64 mask bytes is bit x % 64 of bits[x / 64].
+void pack_bits(const uchar* m, int nw, uint64_t* bits) {
+  for (int i = 0; i < nw; ++i) {
+    uint64_t w = 0;
+    for (int k = 0; k < 8; ++k) w |= pack8(m + 64 * i + 8 * k) << (8 * k);
+    bits[i] = w;
+  }
+}
+
+// The first pixel from x on whose bit differs from `clear` (0: the next set bit, ~0: the next clear one);
+// nw * 64 when there is none.
+int next_bit(const uint64_t* bits, int nw, int x, uint64_t clear) {
+  int i = x >> 6;
+  if (i >= nw) return nw * 64;
+  uint64_t w = (bits[i] ^ clear) & (~0ULL << (x & 63));
+  while (!w) {
+    if (++i >= nw) return nw * 64;
+    w = bits[i] ^ clear;
+  }
+  return i * 64 + __builtin_ctzll(w);
+}
+
+// Whether any bit of pixels x0..x1 is set.
+bool any_bit(const uint64_t* bits, int x0, int x1) {
+  for (int i = x0 >> 6; i <= x1 >> 6; ++i) {
+    uint64_t w = bits[i];
+    if (i == x0 >> 6) w &= ~0ULL << (x0 & 63);
+    if (i == x1 >> 6 && (x1 & 63) != 63) w &= (1ULL << ((x1 & 63) + 1)) - 1;
+    if (w) return true;
+  }
+  return false;
+}
+
 void unite(std::vector<Run>& runs, int a, int b) {
   a = root_of(runs, a), b = root_of(runs, b);
   if (a < b) runs[size_t(b)].parent = a;
@@ -42,7 +82,11 @@ long long label_components(const cv::Mat& gray, const cv::Mat& background, int s
   uchar* e[3] = {buf.data() + 3 * P, buf.data() + 4 * P, buf.data() + 5 * P};
   uchar* tmp = buf.data() + 6 * P;
   uchar* full = buf.data() + 7 * P;  // 255 everywhere
-  std::vector<uchar> zero(P, 0), opened(static_cast<size_t>(W)), in(static_cast<size_t>(W));
+  // The row's pixels above the low and the high level as bytes (0 or 255), zero-padded to whole 64-pixel
+  // words, and as bits.
+  const int nw = (W + 63) / 64;
+  std::vector<uchar> zero(P, 0), in(size_t(nw) * 64, 0), in_high(size_t(nw) * 64, 0);
+  std::vector<uint64_t> lo_bits(static_cast<size_t>(nw)), hi_bits(static_cast<size_t>(nw));
   std::memset(full, 255, P);
   for (uchar* r : c) r[0] = r[W + 1] = 255;
   for (uchar* r : e) r[0] = r[W + 1] = 0;
@@ -51,7 +95,6 @@ long long label_components(const cv::Mat& gray, const cv::Mat& background, int s
   std::vector<int> row_start(size_t(H) + 1, 0);
   long long above_high = 0;
   const uchar lo = uchar(std::clamp(low, 0, 255)), hi = uchar(std::clamp(high, 0, 255));
-  const bool none_low = low >= 255, none_high = high >= 255;
 
   for (int t = 0; t <= H + 1; ++t) {
     if (t < H) {  // contrast row t
@@ -80,36 +123,25 @@ long long label_components(const cv::Mat& gray, const cv::Mat& background, int s
       const uchar* m = e[y % 3];
       const uchar* z = y + 1 < H ? e[(y + 1) % 3] : zero.data();
       for (size_t x = 0; x < P; ++x) tmp[x] = std::max(std::max(a[x], m[x]), z[x]);
-      for (int x = 0; x < W; ++x) opened[size_t(x)] = std::max(std::max(tmp[x], tmp[x + 1]), tmp[x + 2]);
-      for (int x = 0; x < W; ++x) in[size_t(x)] = uchar(-int(opened[size_t(x)] > lo));
-    }
-    // Runs above the low level, skipping 8 pixels at a time where none is.
-    row_start[size_t(y)] = int(runs.size());
-    if (!none_low) {
-      const uchar* o = opened.data();
-      const uchar* m = in.data();
-      int x = 0;
-      while (x < W) {
-        if (x + 8 <= W) {
-          uint64_t v;
-          std::memcpy(&v, m + x, 8);
-          if (!v) {
-            x += 8;
-            continue;
-          }
-        }
-        if (!m[x]) {
-          ++x;
-          continue;
-        }
-        Run r{y, x, x, int(runs.size()), false};
-        while (x < W && m[x]) {
-          if (!none_high && o[x] > hi) r.strong = true, ++above_high;
-          ++x;
-        }
-        r.x1 = x - 1;
-        runs.push_back(r);
+      uchar* il = in.data();
+      uchar* ih = in_high.data();
+      int row_high = 0;
+      for (int x = 0; x < W; ++x) {
+        const uchar o = std::max(std::max(tmp[x], tmp[x + 1]), tmp[x + 2]);
+        il[x] = uchar(-int(o > lo));
+        ih[x] = uchar(-int(o > lo && o > hi));
+        row_high += ih[x] & 1;
       }
+      above_high += row_high;
+    }
+    // Runs above the low level, found 64 pixels at a time in the row's bits.
+    row_start[size_t(y)] = int(runs.size());
+    pack_bits(in.data(), nw, lo_bits.data());
+    pack_bits(in_high.data(), nw, hi_bits.data());
+    for (int x = next_bit(lo_bits.data(), nw, 0, 0); x < W;) {
+      const int end = next_bit(lo_bits.data(), nw, x, ~0ULL);  // the padding is clear: end <= W
+      runs.push_back(Run{y, x, end - 1, int(runs.size()), any_bit(hi_bits.data(), x, end - 1)});
+      x = next_bit(lo_bits.data(), nw, end, 0);
     }
     // 8-connected to the previous row's runs: overlapping once widened by one pixel.
     if (y > 0) {

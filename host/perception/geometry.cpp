@@ -5,7 +5,7 @@
 #include <cmath>
 #include <numeric>
 
-#include <opencv2/imgproc.hpp>
+#include "pixels.hpp"
 
 namespace rbx1::vision {
 
@@ -45,7 +45,7 @@ double half_level_offset(const cv::Mat& s, cv::Point2d p, cv::Point2d n) {
 
 bool measure_geometry(const Layer& layer, Geometry& out) {
   const cv::Mat& s = layer.soft;
-  cv::Moments m = cv::moments(s, false);
+  cv::Moments m = moments_second_order(s);  // cv::moments(s, false), fused
   if (m.m00 <= 0) return false;
   out.area_px = m.m00;
   out.centroid = {m.m10 / m.m00 + layer.roi.x, m.m01 / m.m00 + layer.roi.y};
@@ -54,11 +54,9 @@ bool measure_geometry(const Layer& layer, Geometry& out) {
   out.mu11 = m.mu11 / m.m00;
 
   // The paper's edge image (Eq. 1-2): |G| of the layer against t, counted over the object's ROI.
-  cv::Mat gx, gy, mag2;
-  cv::Sobel(s, gx, CV_32F, 1, 0, 3, 1.0 / 8);
-  cv::Sobel(s, gy, CV_32F, 0, 1, 3, 1.0 / 8);
-  mag2 = gx.mul(gx) + gy.mul(gy);
-  out.edge_pixels = cv::countNonZero(mag2 > kEdgeThreshold * kEdgeThreshold);
+  // (cv::Sobel with 1/8 and the count of gx^2 + gy^2 > t^2, in one pass.)
+  cv::Mat gx, gy;
+  out.edge_pixels = sobel_gradient(s, gx, gy, float(kEdgeThreshold * kEdgeThreshold));
 
   const std::vector<cv::Point>& c = layer.outer;
   if (c.empty()) return false;

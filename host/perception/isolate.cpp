@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "components.hpp"
+#include "pixels.hpp"
 
 namespace rbx1::vision {
 namespace {
@@ -19,31 +20,47 @@ namespace {
 void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign, cv::Rect roi, double threshold,
                 Layer& layer) {
   const cv::Mat lab = labels(roi), g = con.gray(roi), bg = con.background(roi);
+  const int W = roi.width, H = roi.height;
   layer.sign = sign;
-  // The contrast over the ROI, computed once (8-bit inputs: an integer within +-255), and its median over
-  // the component (a histogram).
-  thread_local std::vector<int16_t> cbuf;
+  // The contrast over the ROI, computed once, 8-bit and saturated at 0: the component's pixels all lie above
+  // the low threshold (the opening only lowers the contrast), and the layer clamps at 0 anyway. The
+  // component's mask beside it, and the median contrast over the component (histograms by column mod 4, so
+  // that equal neighbours do not wait on each other's count).
+  thread_local std::vector<uchar> cbuf, obuf, zbuf;  // contrast, own pixels, unlabelled pixels
   cbuf.resize(size_t(roi.area()));
-  int hist[512] = {0}, n = 0;
-  for (int y = 0; y < roi.height; ++y) {
+  obuf.resize(size_t(roi.area()));
+  zbuf.resize(size_t(roi.area()));
+  int hist4[4][256] = {};
+  int n = 0;
+  for (int y = 0; y < H; ++y) {
     const uchar* gr = g.ptr<uchar>(y);
     const uchar* br = bg.ptr<uchar>(y);
     const int* lr = lab.ptr<int>(y);
-    int16_t* cr = cbuf.data() + size_t(y) * size_t(roi.width);
+    uchar* cr = cbuf.data() + size_t(y) * size_t(W);
+    uchar* orow = obuf.data() + size_t(y) * size_t(W);
+    uchar* zrow = zbuf.data() + size_t(y) * size_t(W);
     if (sign > 0) {
-      for (int x = 0; x < roi.width; ++x) cr[x] = int16_t(gr[x] - br[x]);
+      for (int x = 0; x < W; ++x) cr[x] = uchar(std::max(int(gr[x]) - int(br[x]), 0));
     } else if (sign < 0) {
-      for (int x = 0; x < roi.width; ++x) cr[x] = int16_t(br[x] - gr[x]);
+      for (int x = 0; x < W; ++x) cr[x] = uchar(std::max(int(br[x]) - int(gr[x]), 0));
     } else {
-      for (int x = 0; x < roi.width; ++x) cr[x] = int16_t(std::abs(gr[x] - br[x]));
+      for (int x = 0; x < W; ++x) cr[x] = uchar(std::abs(int(gr[x]) - int(br[x])));
     }
-    for (int x = 0; x < roi.width; ++x)
-      if (lr[x] == label) hist[cr[x] + 256]++, ++n;
+    for (int x = 0; x < W; ++x) orow[x] = uchar(-int(lr[x] == label));
+    for (int x = 0; x < W; ++x) zrow[x] = uchar(-int(lr[x] == 0));
+    int row_n = 0;
+    for (int x = 0; x < W; ++x) row_n += orow[x] & 1;
+    n += row_n;
+    for (int x = 0; x < W; ++x) hist4[x & 3][cr[x] & orow[x]]++;
   }
+  int hist[256];
+  for (int i = 0; i < 256; ++i) hist[i] = hist4[0][i] + hist4[1][i] + hist4[2][i] + hist4[3][i];
+  hist[0] = n;  // bin 0 also counted the pixels outside the component
+  for (int i = 1; i < 256; ++i) hist[0] -= hist[i];
   int acc = 0, med = 0;
-  for (int i = 0; i < 512; ++i)
+  for (int i = 0; i < 256; ++i)
     if ((acc += hist[i]) * 2 >= n) {
-      med = i - 256;
+      med = i;
       break;
     }
   const double level = std::max<double>(med, threshold);
@@ -53,26 +70,27 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign,
   // The object at its half level, then the soft edge within 2 px of it: a shadow or glare joined to the
   // object at the low threshold, but fainter than half its contrast, stays out of the moments.
   // (An integer contrast c is above the half level exactly when it is above its floor.)
-  const int half_i = int(std::floor(half));
+  const uchar half_c = uchar(std::min(int(std::floor(half)), 255));
   layer.inside.create(roi.size(), CV_8U);
-  for (int y = 0; y < roi.height; ++y) {
-    const int16_t* cr = cbuf.data() + size_t(y) * size_t(roi.width);
-    const int* lr = lab.ptr<int>(y);
+  for (int y = 0; y < H; ++y) {
+    const uchar* cr = cbuf.data() + size_t(y) * size_t(W);
+    const uchar* orow = obuf.data() + size_t(y) * size_t(W);
     uchar* ir = layer.inside.ptr<uchar>(y);
-    for (int x = 0; x < roi.width; ++x) ir[x] = uchar(-int((lr[x] == label) & (cr[x] > half_i)));
+    for (int x = 0; x < W; ++x) ir[x] = orow[x] & uchar(-int(cr[x] > half_c));
   }
   cv::Mat near;
-  cv::dilate(layer.inside, near, cv::Mat(), cv::Point(-1, -1), 2);
+  dilate_square(layer.inside, near, 2);
+  // The ramp as a table over the 256 contrasts (index 0 is also every pixel left out: lut[0] = 0).
+  float lut[256];
+  for (int c = 0; c < 256; ++c) lut[c] = std::clamp(float(c) * a + b, 0.f, 1.f);
   layer.soft.create(roi.size(), CV_32F);
-  for (int y = 0; y < roi.height; ++y) {
-    const int16_t* cr = cbuf.data() + size_t(y) * size_t(roi.width);
-    const int* lr = lab.ptr<int>(y);
+  for (int y = 0; y < H; ++y) {
+    const uchar* cr = cbuf.data() + size_t(y) * size_t(W);
+    const uchar* orow = obuf.data() + size_t(y) * size_t(W);
+    const uchar* zrow = zbuf.data() + size_t(y) * size_t(W);
     const uchar* nr = near.ptr<uchar>(y);
     float* sr = layer.soft.ptr<float>(y);
-    for (int x = 0; x < roi.width; ++x) {
-      const float v = std::clamp(float(cr[x]) * a + b, 0.f, 1.f);
-      sr[x] = nr[x] && (lr[x] == label || lr[x] == 0) ? v : 0.f;
-    }
+    for (int x = 0; x < W; ++x) sr[x] = lut[cr[x] & nr[x] & (orow[x] | zrow[x])];
   }
   layer.roi = roi;
   layer.label = label;
@@ -105,9 +123,15 @@ void drop_fringes(const Contrast& con, const IsolationOptions& opt, Isolation& o
   for (size_t i = 0; i < out.layers.size(); ++i) {
     const Layer& l = out.layers[i];
     cv::Rect r = cv::Rect(l.roi.x - 3, l.roi.y - 3, l.roi.width + 6, l.roi.height + 6) & frame;
-    cv::Mat lab = out.labels(r), own = lab == l.label, ring;
-    cv::dilate(own, ring, cv::Mat(), cv::Point(-1, -1), 3);
-    ring &= ~own;
+    cv::Mat lab = out.labels(r), own(r.size(), CV_8U), ring;
+    // (Locals: byte stores may alias anything else, which would stop the loop vectorising.)
+    const int label = l.label, rw = r.width;
+    for (int y = 0; y < r.height; ++y) {
+      const int* lr = lab.ptr<int>(y);
+      uchar* o = own.ptr<uchar>(y);
+      for (int x = 0; x < rw; ++x) o[x] = uchar(-int(lr[x] == label));
+    }
+    dilate_square(own, ring, 3);  // the 3 px ring: the dilation without the region itself
     int n_ring = 0, n_other = 0;
     double strongest = 0;
     bool shade = false;  // beside a far stronger, far larger object of its own polarity
@@ -115,8 +139,9 @@ void drop_fringes(const Contrast& con, const IsolationOptions& opt, Isolation& o
     for (int y = 0; y < r.height; ++y) {
       const int* lr = lab.ptr<int>(y);
       const uchar* rr = ring.ptr<uchar>(y);
+      const uchar* ow = own.ptr<uchar>(y);
       for (int x = 0; x < r.width; ++x) {
-        if (!rr[x]) continue;
+        if (!(rr[x] & ~ow[x])) continue;
         ++n_ring;
         int o = lr[x];
         if (o > 0 && o != l.label && out.sign[size_t(o)] == l.sign)

@@ -1,6 +1,9 @@
 // background_test.cpp - the captured background: averaging frames, fitting the light change, using both.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <random>
+
 #include <opencv2/imgproc.hpp>
 
 #include "background.hpp"
@@ -80,6 +83,24 @@ TEST(Background, DetectionSurvivesALightChange) {
   Detection raw;
   EXPECT_FALSE(detect(darker, bg, o, nullptr, raw, error));
   EXPECT_NE(error.find("foreground"), std::string::npos);
+}
+
+TEST(Background, KthSmallestEqualsNthElement) {
+  // The light fit's median residual: equal to what std::nth_element selects, on residual-like data (many ties,
+  // zeros, a long tail, values far apart in exponent) of every size from 1.
+  std::mt19937 rng(3);
+  for (int trial = 0; trial < 300; ++trial) {
+    const size_t n = 1 + rng() % 7000;
+    std::vector<float> v(n);
+    std::exponential_distribution<float> E(trial % 2 ? 0.5f : 0.01f);
+    for (float& f : v) f = rng() % 5 == 0 ? float(rng() % 4) : trial % 3 == 0 ? E(rng) * 1e-6f : E(rng);
+    for (size_t k : {size_t(0), n / 2, n - 1, size_t(rng() % n)}) {
+      std::vector<float> w = v;
+      std::nth_element(w.begin(), w.begin() + long(k), w.end());
+      ASSERT_EQ(kth_smallest(v, k), w[k]) << "n=" << n << " k=" << k;
+    }
+  }
+  EXPECT_EQ(kth_smallest({3.5f, 0.0f, 1.25f}, 1), 1.25f);
 }
 
 }  // namespace
