@@ -42,6 +42,9 @@ void read_joint(Section s, JointConfig& j) {
     j.direction = int(dir);
   }
   j.zero_deg = s.number("zero_deg", j.zero_deg, -360.0, 360.0);
+  // The ranges of the firmware's MAX_SPEED and ACCEL keys (PROTOCOL.md).
+  j.max_speed_steps_s = int(s.integer("max_speed_steps_s", j.max_speed_steps_s, 1, 20000));
+  j.accel_steps_s2 = int(s.integer("accel_steps_s2", j.accel_steps_s2, 1, 200000));
   if (j.min_deg >= j.max_deg) {
     s.errors().add(s.path() + ".min_deg", "must be below max_deg (" + fmt(j.min_deg) + " >= " + fmt(j.max_deg) + ")");
     j.min_deg = default_min;  // keep the defaults, so checks against the limits do not report this again

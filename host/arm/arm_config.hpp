@@ -32,6 +32,10 @@ struct JointConfig {
   double min_deg = -180.0, max_deg = 180.0;
   int direction = 1;       // +1: positive angle = positive steps; -1: reversed
   double zero_deg = 0.0;   // joint angle at step count 0 (where homing puts HOME_POSITION)
+  // The firmware's limits of this joint (its MAX_SPEED and ACCEL keys, PROTOCOL.md): straight lines are timed
+  // against them (line_timing.hpp), so they must match what the board has (the defaults are the firmware's).
+  int max_speed_steps_s = 4000;
+  int accel_steps_s2 = 8000;
   bool operator==(const JointConfig&) const = default;
 };
 

@@ -66,6 +66,8 @@ reduction = 20
 microsteps = 32
 direction = -1
 zero_deg = -90
+max_speed_steps_s = 12000
+accel_steps_s2 = 50000
 [arm.gripper]
 closed_us = 1900
 open_us = 1100
@@ -91,6 +93,10 @@ min_move_ms = 0
   EXPECT_EQ(c.joints[2].microsteps, 32);
   EXPECT_EQ(c.joints[2].direction, -1);
   EXPECT_DOUBLE_EQ(c.joints[2].zero_deg, -90);
+  EXPECT_EQ(c.joints[2].max_speed_steps_s, 12000);
+  EXPECT_EQ(c.joints[2].accel_steps_s2, 50000);
+  EXPECT_EQ(c.joints[1].max_speed_steps_s, 4000);  // the firmware's defaults
+  EXPECT_EQ(c.joints[1].accel_steps_s2, 8000);
   EXPECT_EQ(c.gripper.closed_us, 1900);
   EXPECT_EQ(c.gripper.open_us, 1100);
   EXPECT_EQ(c.home, (Joints{0, 10, 20, 0, 30, 0}));
@@ -117,6 +123,8 @@ lenght_mm = 3
 upper_arm_mm = -5
 [arm.joints.j2]
 direction = 0
+max_speed_steps_s = 20001
+accel_steps_s2 = 0
 [arm.joints.j3]
 reduction = "x"
 min_deg = 50
@@ -144,6 +152,8 @@ joint_speed_deg_s = 0
       "arm.links.lenght_mm: unknown key",
       "arm.links.upper_arm_mm: must be within [10, 2000]",
       "arm.joints.j2.direction: must be 1 or -1",
+      "arm.joints.j2.max_speed_steps_s: must be within [1, 20000]",
+      "arm.joints.j2.accel_steps_s2: must be within [1, 200000]",
       "arm.joints.j3.reduction: must be a number",
       "arm.joints.j3.min_deg: must be below max_deg (50 >= 40)",
       "arm.joints.j7: unknown key",

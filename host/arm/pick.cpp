@@ -9,6 +9,7 @@
 #include "joint_steps.hpp"
 #include "kinematics.hpp"
 #include "line.hpp"
+#include "line_timing.hpp"
 
 namespace rbx1::arm {
 
@@ -43,8 +44,8 @@ void add_gripper(const ArmConfig& cfg, std::vector<Waypoint>& out, const std::st
 }
 
 // Appends the straight line of the tool point from where the arm stands (`at`, read by FK) to `to`, split by
-// plan_line: one move named `name` per segment, each timed by the joint speed alone (no min_move_ms: the
-// firmware's look-ahead joins the segments without stopping).
+// plan_line and timed by time_line: one move named `name` per segment, the line one profile within the joints'
+// limits, no faster than a joint move over the same travel (the firmware's look-ahead joins the segments).
 bool add_line(const ArmConfig& cfg, std::vector<Waypoint>& out, const std::string& name, Steps& at, const Grasp& to,
               std::string& error) {
   const ToolPose p = tool_pose(cfg.links, steps_to_joints(cfg, at));
@@ -55,24 +56,27 @@ bool add_line(const ArmConfig& cfg, std::vector<Waypoint>& out, const std::strin
     error = name + ": " + why;
     return false;
   }
-  for (const Steps& s : targets) {
+  // A target equal to the one before would be a zero-length MOVE: a stop in the middle of the line.
+  targets.erase(std::unique(targets.begin(), targets.end()), targets.end());
+  if (!targets.empty() && targets.front() == at) targets.erase(targets.begin());
+  LineTiming timing;
+  if (!time_line(cfg, at, targets, timing, why)) {
+    error = name + ": " + why;
+    return false;
+  }
+  for (size_t k = 0; k < targets.size(); ++k) {
     Waypoint w;
     w.name = name;
     w.kind = WaypointKind::Move;
-    w.steps = s;
-    w.joints = steps_to_joints(cfg, s);
+    w.steps = targets[k];
+    w.joints = steps_to_joints(cfg, targets[k]);
     if (!check_limits(cfg, w.joints, why)) {
       error = name + ": " + why;
       return false;
     }
-    int64_t ms = segment_ms(cfg, steps_to_joints(cfg, at), w.joints);
-    if (ms > 65535) {
-      error = name + ": a segment would take " + std::to_string(ms) + " ms, more than MOVE allows (65535)";
-      return false;
-    }
-    w.duration_ms = uint16_t(ms);
+    w.duration_ms = timing.duration_ms[k];
     out.push_back(w);
-    at = s;
+    at = targets[k];
   }
   return true;
 }

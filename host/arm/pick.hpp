@@ -53,7 +53,7 @@ Steps scan_steps(const ArmConfig& cfg);
 // nearest microsecond. false + error for an opening below 0 or above max_opening_mm.
 bool gripper_pulse_us(const GripperConfig& g, double opening_mm, uint16_t& pulse_us, std::string& error);
 
-// ceil(1000 * largest joint change / joint_speed_deg_s) ms, at least 1 (a straight line's segment).
+// ceil(1000 * largest joint change / joint_speed_deg_s) ms, at least 1.
 int64_t segment_ms(const ArmConfig& cfg, const Joints& from, const Joints& to);
 // segment_ms, at least min_move_ms (may exceed 65535: check).
 int64_t move_duration_ms(const ArmConfig& cfg, const Joints& from, const Joints& to);

@@ -11,7 +11,7 @@ import rbx1e2e as e2e  # noqa: E402
 def fast_config(cfg=None):
     """The bundled config, paths absolute, with a faster arm so a pick takes seconds, not a minute."""
     cfg = e2e.absolutize(cfg or e2e.load_default_config())
-    cfg.setdefault("arm", {}).setdefault("speeds", {})["joint_speed_deg_s"] = e2e.FAST_DEG_S
+    e2e.fast_arm(cfg)
     cfg.setdefault("daemon", {})["log_level"] = "debug"
     return cfg
 

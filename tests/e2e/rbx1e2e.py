@@ -346,6 +346,18 @@ def vision_to_base(arm, p_cm, angle_deg):
 # ---- a fast simulated arm -------------------------------------------------------------------------------------
 
 FAST_DEG_S = 90.0  # joint speed of the test arm (the bundled default is 20 deg/s)
+FAST_MAX_SPEED, FAST_ACCEL = 20000, 200000  # the test firmware's MAX_SPEED and ACCEL (the defaults: 4000, 8000)
+
+
+def fast_arm(cfg):
+    """The test arm in the daemon's config: FAST_DEG_S, and the firmware limits configure_fast_firmware sets (the
+    host times straight lines against them)."""
+    arm = cfg.setdefault("arm", {})
+    arm.setdefault("speeds", {})["joint_speed_deg_s"] = FAST_DEG_S
+    for j in range(1, 7):
+        joint = arm.setdefault("joints", {}).setdefault(f"j{j}", {})
+        joint.update(max_speed_steps_s=FAST_MAX_SPEED, accel_steps_s2=FAST_ACCEL)
+    return cfg
 
 
 def configure_fast_firmware(port):
@@ -356,7 +368,7 @@ def configure_fast_firmware(port):
     with Link(port) as link:
         link.hello()
         for j in range(6):
-            for key, value in ((Key.MAX_SPEED, 20000), (Key.ACCEL, 200000)):
+            for key, value in ((Key.MAX_SPEED, FAST_MAX_SPEED), (Key.ACCEL, FAST_ACCEL)):
                 r = link.request(MsgType.CONFIG_SET, joint=j, key=key, value=value)
                 assert r["status"] == 0, (j, key, r)
 

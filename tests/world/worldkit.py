@@ -117,8 +117,7 @@ def daemon_config(tmp, scene_path, scene, camera):
     d = cfg.setdefault("daemon", {})
     d.update({"status_poll_ms": STATUS_POLL_MS, "verify_pick": True, "pick_retries": 1, "log_level": "info",
               "job_timeout_s": 120.0})
-    arm = cfg.setdefault("arm", {})
-    arm.setdefault("speeds", {})["joint_speed_deg_s"] = e2e.FAST_DEG_S
+    arm = e2e.fast_arm(cfg)["arm"]
     arm["camera"] = arm_camera
     cfg["operator"] = {"jog_max_mm": 500.0, "jog_max_deg": 180.0}
     arm["places"] = {p["name"]: {"x_mm": p["x_mm"], "y_mm": p["y_mm"], "z_mm": p.get("z_mm", 0.0),
