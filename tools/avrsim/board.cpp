@@ -2,6 +2,7 @@
 #include "board.hpp"
 
 #include <fcntl.h>
+#include <sys/ioctl.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -205,6 +206,20 @@ bool Board::save_eeprom(std::string& error) {
     return false;
   }
   return true;
+}
+
+int Board::host_unread() const {
+  int n = 0;
+  if (slave_fd_ < 0 || ioctl(slave_fd_, FIONREAD, &n) != 0) return 0;
+  return n;
+}
+
+bool Board::host_pending() const {
+  int n = 0;
+  const uart_pty_port_t& p = pty_.port[0];
+  if (p.s >= 0 && ioctl(p.s, FIONREAD, &n) == 0 && n > 0) return true;
+  // Read from the bridge's thread without its lock: a stale answer only holds or runs one more slice.
+  return p.buffer_done < p.buffer_len || p.in.read != p.in.write;
 }
 
 }  // namespace rbx1::avrsim

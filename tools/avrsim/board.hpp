@@ -31,6 +31,10 @@ class Board {
   // simavr 1.6 times a UART byte as 11 bits (it always counts a parity bit); 8N1 is 10. Sets UART0's byte time
   // from the firmware's UBRR0/U2X0, or from forced_baud when non-zero (a line rate other than the firmware's).
   void set_uart_timing(uint32_t forced_baud);
+  // Bytes the firmware sent that wait unread on the pty (the host has not read them yet).
+  int host_unread() const;
+  // Whether bytes the host wrote still wait for the firmware's UART (in the pty or the bridge's buffers).
+  bool host_pending() const;
   // Writes the EEPROM to the --eeprom file (atomic rename). No-op without one.
   bool save_eeprom(std::string& error);
 

@@ -1,6 +1,7 @@
 // main.cpp - rbx1-avrsim: runs the real firmware ELF under simavr behind a pty, paced to real time, driven by a
 // control FIFO, and writes step counts, step-ISR cycles and e-stop latency as JSON on exit.
 #include <fcntl.h>
+#include <sys/mman.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -155,7 +156,8 @@ int main(int argc, char** argv) {
   int isr_vector = -1;
   double max_seconds = 0;
   uint32_t uart_baud = 0;
-  std::string trace_path;
+  std::string trace_path, clock_file;
+  bool hold_for_host = false;
   app.add_option("--elf", elf, "firmware ELF")->capture_default_str();
   app.add_option("--control", control, "control FIFO (estop 0|1 [DELAY_CYCLES|@CYCLES_AFTER_STEP_IRQ[:NTH_IRQ]], limit J 0|1, reset, stats FILE, quit)");
   app.add_option("--json", json_path, "write the measurements here on exit");
@@ -167,6 +169,13 @@ int main(int argc, char** argv) {
                  "time UART0 bytes at this line rate instead of the firmware's UBRR0 (benchmarks)");
   app.add_option("--trace", trace_path,
                  "log every STEP/DIR edge, interrupt entry/exit and I-bit change with its cycle to this file");
+  app.add_flag("--hold-for-host", hold_for_host,
+               "benchmarks: simulated time stands still while the host is late (what the firmware sent waits unread "
+               "and nothing the host wrote waits for the firmware) or says it is busy (--clock-file byte 8 = 1), so "
+               "figures in simulated cycles count the link, not the host's scheduling");
+  app.add_option("--clock-file", clock_file,
+                 "benchmarks: a 16-byte file, mapped: the simulated time (cycles, u64 little-endian) at 0, kept "
+                 "current, so a host can time out on the board's clock; at 8 a byte the host sets to 1 while busy");
   CLI11_PARSE(app, argc, argv);
 
   if (!fast) {
@@ -208,6 +217,21 @@ int main(int argc, char** argv) {
   sigaction(SIGINT, &sa, nullptr);
   signal(SIGPIPE, SIG_IGN);
 
+  volatile uint64_t* sim_clock = nullptr;
+  volatile uint8_t* host_busy = nullptr;
+  if (!clock_file.empty()) {
+    int fd = ::open(clock_file.c_str(), O_RDWR | O_CREAT | O_TRUNC, 0644);
+    void* m = fd >= 0 && ftruncate(fd, 16) == 0 ? mmap(nullptr, 16, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0)
+                                                : MAP_FAILED;
+    if (fd >= 0) ::close(fd);
+    if (m == MAP_FAILED) {
+      std::fprintf(stderr, "rbx1-avrsim: %s: %s\n", clock_file.c_str(), std::strerror(errno));
+      return 2;
+    }
+    sim_clock = static_cast<volatile uint64_t*>(m);
+    host_busy = static_cast<volatile uint8_t*>(m) + 8;
+    *sim_clock = board.avr()->cycle;
+  }
   std::printf("%s\n", board.pty_path());
   std::fflush(stdout);
 
@@ -222,19 +246,7 @@ int main(int argc, char** argv) {
   std::string line;
   double last_warning = -1e9;
 
-  while (!g_stop) {
-    const avr_cycle_count_t until = avr->cycle + slice;
-    while (avr->cycle < until) {
-      int state = avr_run(avr);
-      if (trace) trace->after_instruction();
-      if (state == cpu_Done || state == cpu_Crashed) {
-        std::fprintf(stderr, "rbx1-avrsim: the firmware %s at pc 0x%x, cycle %llu\n",
-                     state == cpu_Crashed ? "crashed" : "stopped", avr->pc,
-                     static_cast<unsigned long long>(avr->cycle));
-        finish(board, probes, trace, json_path, 1);
-      }
-    }
-    board.set_uart_timing(uart_baud);
+  auto control_commands = [&] {
     while (fifo.next(line)) {
       std::istringstream in(line);
       std::string cmd;
@@ -276,6 +288,40 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "rbx1-avrsim: unknown control command '%s'\n", line.c_str());
       }
     }
+  };
+
+  while (!g_stop) {
+    // The host is late when what the firmware sent waits unread and the firmware has nothing of the host's to
+    // read (a host descheduled with its answers waiting), or when it says it is busy (between reading answers and
+    // writing what they call for): time stands still until it reads or is done, and pacing resumes from there (no
+    // burst to catch up). Control commands still work meanwhile.
+    auto late = [&] {
+      return hold_for_host &&
+             ((host_busy && *host_busy == 1) || (board.host_unread() > 0 && !board.host_pending()));
+    };
+    if (late()) {
+      const double p0 = now_s();
+      while (!g_stop && late() && !(max_seconds > 0 && now_s() - started > max_seconds)) {
+        control_commands();
+        timespec ts{0, 50000};
+        nanosleep(&ts, nullptr);
+      }
+      t0 += now_s() - p0;
+    }
+    const avr_cycle_count_t until = avr->cycle + slice;
+    while (avr->cycle < until) {
+      int state = avr_run(avr);
+      if (trace) trace->after_instruction();
+      if (state == cpu_Done || state == cpu_Crashed) {
+        std::fprintf(stderr, "rbx1-avrsim: the firmware %s at pc 0x%x, cycle %llu\n",
+                     state == cpu_Crashed ? "crashed" : "stopped", avr->pc,
+                     static_cast<unsigned long long>(avr->cycle));
+        finish(board, probes, trace, json_path, 1);
+      }
+    }
+    board.set_uart_timing(uart_baud);
+    if (sim_clock) *sim_clock = avr->cycle;
+    control_commands();
     const double now = now_s();
     if (max_seconds > 0 && now - started > max_seconds) {
       std::fprintf(stderr, "rbx1-avrsim: --max-seconds reached\n");

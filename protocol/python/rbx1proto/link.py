@@ -33,6 +33,7 @@ class Link:
         self.retries = retries
         self.seq = 0
         self.retransmissions = 0
+        self.timeouts = 0  # stream(): silences that sent every unanswered request again
         self.max_window = window  # a cap on the firmware's window (None: the firmware's)
         self.window = 1           # requests in flight in stream(): min(max_window, HELLO's window)
         self.baudrate = baudrate
@@ -182,6 +183,7 @@ class Link:
             again = sorted(j for j in again if results[j] is None)
             if not again and self.clock() >= sent_at[base] + wait:
                 again = [i for i in range(base, nxt) if results[i] is None]  # silence: go back from the oldest
+                self.timeouts += 1 if again else 0
             if again:
                 if again[0] == base:
                     tries += 1
