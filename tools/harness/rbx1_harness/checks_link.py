@@ -301,11 +301,11 @@ def window_gap_held(b):
     seqs, wires = move_frames(b, [30, 60, 45])
     beyond = (seqs[0] + w) & 0xFF
     _, far = b.frame(MsgType.MOVE, seq=beyond, target=[999, 0, 0, 0, 0, 0], duration_ms=0)
-    ev = b.exchange_raw(wires[2] + wires[1] + wires[1] + far, until=lambda e: len(naks(e)) >= 4)
+    ev = b.exchange_raw(wires[2] + wires[1] + wires[1] + far, until=lambda e: len(naks(e)) >= 4, timeout=2)
     want = [(seqs[2], Status.HELD), (seqs[1], Status.HELD), (seqs[1], Status.HELD), (beyond, Status.SEQ_GAP)]
     expect(naks(ev) == want, f"held and beyond: expected NAKs {want}, got {ev}")
     expect(not [e for e in ev if isinstance(e, frame.Frame) and e.type & 0x80], f"a held request was answered: {ev}")
-    ev = b.exchange_raw(wires[0], until=lambda e: all(responses(e, MsgType.MOVE, q) for q in seqs))
+    ev = b.exchange_raw(wires[0], until=lambda e: all(responses(e, MsgType.MOVE, q) for q in seqs), timeout=2)
     order = [e.seq for e in ev if isinstance(e, frame.Frame) and e.type == MsgType.MOVE | 0x80]
     expect(order == seqs, f"the filled gap: expected answers for SEQs {seqs} in that order, got {ev}")
     expect(all(responses(ev, MsgType.MOVE, q)[0].payload[0] == Status.OK for q in seqs if responses(ev, MsgType.MOVE, q)),
@@ -321,16 +321,17 @@ def window_held_dropped_by_estop(b):
     # runs the missing one alone (refused: the e-stop latched); the dropped one, sent again, runs once.
     before = b.status()
     seqs, wires = move_frames(b, [30, 60])
-    ev = b.exchange_raw(wires[1], until=lambda e: naks(e))
+    ev = b.exchange_raw(wires[1], until=lambda e: naks(e), timeout=2)
     expect(naks(ev) == [(seqs[1], Status.HELD)], f"expected NAK HELD seq {seqs[1]}, got {ev}")
     eseq, estop = b.frame(MsgType.ESTOP)
-    ev = b.exchange_raw(estop, until=lambda e: responses(e, MsgType.ESTOP, eseq) and naks(e))
+    ev = b.exchange_raw(estop, until=lambda e: responses(e, MsgType.ESTOP, eseq) and naks(e), timeout=2)
     kinds = [(e.type, e.seq) for e in ev if isinstance(e, frame.Frame)]
     expect(kinds == [(MsgType.ESTOP | 0x80, eseq), (MsgType.NAK, seqs[1])] and naks(ev) == [(seqs[1], Status.SEQ_GAP)],
            f"ESTOP with a held request: expected its answer then NAK SEQ_GAP seq {seqs[1]}, got {ev}")
     # The missing one and the dropped one again: exactly one answer each (the dropped one, had it stayed held,
-    # would be answered when the gap is filled and again as a duplicate).
-    ev = b.exchange_raw(wires[0] + wires[1], until=lambda e: len(responses(e, MsgType.MOVE, seqs[1])) >= 2)
+    # would be answered when the gap is filled and again as a duplicate; 2 s for that second answer to show).
+    ev = b.exchange_raw(wires[0] + wires[1], until=lambda e: len(responses(e, MsgType.MOVE, seqs[1])) >= 2,
+                        timeout=2)
     for q in seqs:
         r = responses(ev, MsgType.MOVE, q)
         expect(len(r) == 1 and r[0].payload[0] == Status.FAULT_ACTIVE,
