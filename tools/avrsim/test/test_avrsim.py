@@ -38,6 +38,10 @@ class Sim:
             if self.ser.read_until(b"pong\n").endswith(b"pong\n"):
                 break
         self.ser.timeout = 5  # generous: a busy machine can starve the simulator
+        # A ping answered after its 0.2 s leaves a pong behind that the next command would read as its answer: an
+        # unknown command's "err" comes after every one of them.
+        self.ser.write(b"sync\n")
+        assert self.ser.read_until(b"err\n").endswith(b"err\n"), "no answer to the sync"
 
     def line(self):
         return self.ser.readline().decode().strip()
