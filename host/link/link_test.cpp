@@ -364,13 +364,17 @@ TEST_F(LinkTest, LinkDownAfterFiveRetransmissions) {
 }
 
 TEST_F(LinkTest, ConfiguredTimingIsUsed) {
-  link.set_timing(30, 2);
+  // Longer than the default timeout and fewer tries: only lower bounds and counts, which a loaded machine cannot
+  // break (an upper bound on 3 x 30 ms failed at 681 ms at load 20).
+  link.set_timing(250, 1);
   peer.drop_next = 1000;
+  uint8_t seq = link.next_seq();
   auto t0 = steady_clock::now();
   rbx1_status_resp s{};
   EXPECT_EQ(link.status(s), -ETIMEDOUT);
-  EXPECT_LT(ms_since(t0), 450);  // 3 x 30 ms, far from the default 6 x 100 ms
-  EXPECT_EQ(delta().retransmissions, 2u);
+  EXPECT_GE(ms_since(t0), 490);  // 2 x 250 ms; the default 100 ms would give 2 x 100
+  EXPECT_EQ(with_seq(peer, seq).size(), 2u);  // the default would send it 6 times
+  EXPECT_EQ(delta().retransmissions, 1u);
 }
 
 TEST_F(LinkTest, EstopGoesOutWhileARequestWaits) {
