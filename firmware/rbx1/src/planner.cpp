@@ -70,6 +70,9 @@ static uint32_t add_sat(uint32_t a, uint32_t b) { return a + b < a ? 0xFFFFFFFFU
 // rates with jumps of at most their start rates sqrt(ACCEL_i / 2) (v d_i <= sqrt(ACCEL_i / 2): a reversal or a
 // corner that sharp ends at rest, as a start from rest is the largest jump a joint makes there). A move that
 // duration_ms stretched (plan_move) joins only at its whole cruise rate n / duration_ms.
+// sqrt(ACCEL / 2) / sqrt(2 ACCEL JUNCTION_LAG_STEPS): the start rate's share of the lag bound.
+static const float kStartOverJump = 0.5f / sqrtf((float)JUNCTION_LAG_STEPS);
+
 static void junction(plan_block *b, const plan_block *p, float vc, uint8_t stretched) {
   b->joins = 0;
   b->max_entry_sq4 = b->stop_sq4;
@@ -86,11 +89,11 @@ static void junction(plan_block *b, const plan_block *p, float vc, uint8_t stret
     float d = fabsf(u - w);
     if (d * vj > 0.0f) {
       float acc = (float)SETTING(i, RBX1_KEY_ACCEL);
-      float jump = sqrtf(acc * (2.0f * JUNCTION_LAG_STEPS)), curve = sqrtf(acc * (pn < bn ? pn : bn) / d);
-      float start = sqrtf(acc * 0.5f);
-      if (jump < d * vj) vj = jump / d;
+      // jump: the largest v within the lag bound (the start rate's bound is a constant share of it: no second sqrtf)
+      float jump = sqrtf(acc * (2.0f * JUNCTION_LAG_STEPS)) / d, curve = sqrtf(acc * (pn < bn ? pn : bn) / d);
+      if (jump < vj) vj = jump;
       if (curve < vj) vj = curve;
-      if (start < d * vstart) vstart = start / d;
+      if (jump * kStartOverJump < vstart) vstart = jump * kStartOverJump;
     }
   }
   // A move duration_ms stretched joins only where it keeps its cruise n / duration_ms from the junction on: slowed
