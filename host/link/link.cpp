@@ -258,15 +258,17 @@ void Link::attribute(Waiter* w, bool refused) {
 // An answer to w in a stream: the firmware runs requests in SEQ order, so every unanswered request before w (in
 // waiting_, oldest first) ran and its answer, sent before w's, was lost: those held, or all of them when w was
 // held, are sent again (answered from memory). A held request's answer follows the answer of the request that
-// filled the gap, not its own copy, so it tells nothing by copies; any other answer is attributed as above.
+// filled the gap, not its own copy, so it tells nothing by copies (and a request sent again for one answer of a
+// release is not sent again for the others); any other answer is attributed as above.
 void Link::attribute_answer(Waiter* w) {
   if (w->txs.empty()) return;
   for (Waiter* o : waiting_) {
     if (o == w) break;
-    if (!o->done && (o->held || w->held)) {
-      o->held = false;
-      o->resend = true;
-    }
+    if (o->done || !(o->held || w->held)) continue;
+    if (!o->held && !o->txs.empty() && o->release_copy == o->txs.back()) continue;  // already sent again for this
+    o->held = false;
+    o->resend = true;
+    o->release_resend = true;
   }
   if (!w->held) attribute(w, false);
 }
@@ -498,6 +500,8 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
       sent_at[i] = now;
       ws[i].txs.push_back(++tx);
       ws[i].resend = false;
+      if (ws[i].release_resend) ws[i].release_copy = tx;
+      ws[i].release_resend = false;
     }
     lock.unlock();
     int r = write_frame(burst.data(), burst.size());

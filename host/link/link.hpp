@@ -144,6 +144,10 @@ class Link {
     uint32_t events = 0;
     bool resend = false;
     bool held = false;  // the firmware holds it ahead of a gap (NAK HELD): not lost, not resent until a timeout
+    // Sent again because a held request's answer showed its answer lost: the copy that resend wrote. The other
+    // answers of the same release show nothing newer, so they do not send that copy again.
+    bool release_resend = false;
+    uint32_t release_copy = 0;
     uint8_t len = 0;
     uint8_t payload[RBX1_MAX_PAYLOAD];
   };

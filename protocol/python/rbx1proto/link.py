@@ -103,6 +103,8 @@ class Link:
         txs = [[] for _ in range(n)]  # every copy's place in the order of all copies written
         events = [0] * n         # answers and NAKs naming the request (the k-th is about copy k or later)
         held = [False] * n       # the firmware said it holds the request (NAK HELD): not lost, not to resend
+        release_copy = [0] * n   # the copy written because a held request's answer showed this one's answer lost
+        by_release = set()       # requests to send again for that reason in this round
         tx = 0
         base = nxt = tries = 0
 
@@ -113,6 +115,9 @@ class Link:
                 tx += 1
                 txs[i].append(tx)
                 sent_at[i] = now
+                if i in by_release:
+                    release_copy[i] = tx
+            by_release.clear()
             self.ser.write(b"".join(frames[i][2] for i in which))
 
         while base < n:
@@ -163,9 +168,11 @@ class Link:
                     # its answer (sent before this one) was lost. A held request's answer follows the answer of the
                     # request that filled the gap, not its own copy: it tells this, and nothing by copies.
                     for j in range(base, i):
-                        if results[j] is None and (held[j] or held[i]):
+                        # Not again for the other answers of the same release (they show nothing newer).
+                        if results[j] is None and (held[j] or held[i]) and (held[j] or release_copy[j] != txs[j][-1]):
                             held[j] = False
                             again.add(j)
+                            by_release.add(j)
                     if held[i]:
                         continue
                 # Answers come in frame order: an unanswered request, not held, whose latest copy went out before

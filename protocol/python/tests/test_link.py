@@ -101,15 +101,15 @@ class Peer(threading.Thread):
             if verdict == "new":
                 self.window.record(f.seq, f.crc, response)
         if self.lose:
-            self.lose -= 1
-            return
-        if self.delay:
-            time.sleep(self.delay)
-        if self.nak_other_seq:
-            self.send(frame.encode((f.seq + 100) & 0xFF, MsgType.NAK, messages.pack_nak(Status.BAD_CRC)))
-        if self.nak_next_seq:  # a BAD_CRC NAK whose SEQ byte was damaged into the next request's
-            self.send(frame.encode((f.seq + 1) & 0xFF, MsgType.NAK, messages.pack_nak(Status.BAD_CRC)))
-        self.send(self.noise + response)
+            self.lose -= 1  # the response is lost (the held requests it releases still run and answer)
+        else:
+            if self.delay:
+                time.sleep(self.delay)
+            if self.nak_other_seq:
+                self.send(frame.encode((f.seq + 100) & 0xFF, MsgType.NAK, messages.pack_nak(Status.BAD_CRC)))
+            if self.nak_next_seq:  # a BAD_CRC NAK whose SEQ byte was damaged into the next request's
+                self.send(frame.encode((f.seq + 1) & 0xFF, MsgType.NAK, messages.pack_nak(Status.BAD_CRC)))
+            self.send(self.noise + response)
         if verdict == "bypass":  # ESTOP: the held requests are dropped, never run, each NAKed SEQ_GAP
             for seq in self.window.drop_held():
                 self.send(frame.encode(seq, MsgType.NAK, messages.pack_nak(Status.SEQ_GAP)))
@@ -401,6 +401,20 @@ def test_stream_resends_only_what_the_answers_show_lost(pty_pair):
     assert [r["status"] for r in rs] == [Status.OK] * 12
     assert peer.moves == list(range(24)) and len(peer.held) == 7 and not peer.refused
     assert link.retransmissions == 1 + 1, "only the missing request is sent again"
+
+
+def test_stream_lost_filler_answer_is_sent_again_once(pty_pair):
+    # The first frame vanishes and its 7 followers are held; its resend fills the gap but its answer is lost. The
+    # held ones' answers (each written on its own) show it ran: it is sent again once, answered from memory, with
+    # no timeout, however the answers are split between reads.
+    link, peer = pty_pair
+    link.timeout = 2.0  # no timeout in this test, however loaded the machine
+    link.hello()
+    peer.drop, peer.lose = 1, 1
+    rs = stream_moves(link, 10)
+    assert [r["status"] for r in rs] == [Status.OK] * 10
+    assert peer.moves == list(range(10)) and peer.duplicates == 1
+    assert link.retransmissions <= 2 and link.timeouts == 0  # the lost request, its lost answer: once each
 
 
 def test_stream_held_then_estop_runs_nothing_held_and_resends(pty_pair):
