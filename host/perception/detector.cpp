@@ -7,13 +7,22 @@
 namespace rbx1::vision {
 
 bool detect(const cv::Mat& gray, const cv::Mat& background_gray, const DetectorOptions& opt, const Library* lib,
-            Detection& out, std::string& error) {
+            Detection& out, std::string& error, const ColourImages* colour) {
   out = Detection{};
   out.size = gray.size();
   Contrast con;
   if (!background_gray.empty()) {
     cv::Mat bg = background_gray;
     if (opt.compensate_light && bg.size() == gray.size()) out.light = compensate_light(gray, background_gray, &bg);
+    if (opt.shadows && colour && bg.size() == gray.size()) {
+      // The table in shade is table: there the background takes the frame's own grey (no contrast).
+      cv::Mat shade;
+      out.shadow_px = shadow_mask(colour->frame, colour->background, out.light, opt.shadow, shade);
+      if (out.shadow_px > 0) {
+        bg = bg.clone();
+        gray.copyTo(bg, shade);
+      }
+    }
     if (!contrast_from_background(gray, bg, opt.objects, opt.isolation.min_contrast, con, error)) return false;
   } else {
     contrast_auto(gray, opt.objects, opt.isolation.min_contrast, con);

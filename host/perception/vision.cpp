@@ -73,6 +73,7 @@ std::unique_ptr<Vision> Vision::create(const VisionOptions& opt, std::string& er
     if (!read_image(opt.background_path, bg, error)) return nullptr;
     if (v->scale_) bg = v->scale_->undistort(bg);
     v->background_ = to_gray8(bg);
+    if (bg.type() == CV_8UC3) v->background_bgr_ = bg;  // for the shadow test on a coloured table
   }
   if (!opt.library_path.empty()) {
     if (!load_library(opt.library_path, v->library_, error)) return nullptr;
@@ -109,7 +110,10 @@ bool Vision::run(const cv::Mat& frame, Detection& det, cv::Mat& processed, std::
     d.grip.finger_depth_px = opt_.finger_depth_px;
     d.grip.min_opening_px = std::max(1.0, opt_.gripper_min_px);
   }
-  if (!detect(gray, background_, d, has_library_ ? &library_ : nullptr, det, error)) return false;
+  ColourImages colour{processed, background_bgr_};
+  const bool in_colour = processed.type() == CV_8UC3 && !background_bgr_.empty();
+  if (!detect(gray, background_, d, has_library_ ? &library_ : nullptr, det, error, in_colour ? &colour : nullptr))
+    return false;
   for (DetectedObject& o : det.objects) {
     if (!scale_) continue;
     o.centroid_cm = scale_->to_cm(o.geometry.centroid);

@@ -57,6 +57,7 @@ class Vision {
   VisionOptions opt_;
   DetectorOptions det_;
   cv::Mat background_;             // gray, undistorted; empty: automatic
+  cv::Mat background_bgr_;         // the same in colour when it is 8-bit BGR (shadow test), else empty
   Library library_;
   bool has_library_ = false;
   std::unique_ptr<TableScale> scale_;

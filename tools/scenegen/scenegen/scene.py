@@ -20,7 +20,8 @@ class SceneSpec:
     def __init__(self, width=640, height=480, px_per_cm=40.0, min_objects=3, max_objects=6,
                  classes=None, p_touching=0.25, p_near=0.4, p_light=0.5, p_pattern=0.5, p_shadow=0.35,
                  blur=(0.5, 1.1), noise=(1.0, 3.5), light_strength=(0.05, 0.2), min_gap_px=14.0,
-                 border_px=10.0, p_mixed=0.0, light_drift=0.0):
+                 border_px=10.0, p_mixed=0.0, light_drift=0.0, shadow_offset=(2.0, 5.0),
+                 shadow_sigma=(2.5, 4.5), shadow_strength=(0.08, 0.18), p_colour=0.0):
         self.width, self.height, self.px_per_cm = width, height, px_per_cm
         self.min_objects, self.max_objects = min_objects, max_objects
         self.classes = list(classes or shapes.class_names())
@@ -32,6 +33,12 @@ class SceneSpec:
         # objects on a mid-grey table, in p_mixed of the scenes; light drift, the scene lit with a gain in
         # 1 +- light_drift and a black-level offset of up to +-10 levels against its empty-table image.
         self.p_mixed, self.light_drift = p_mixed, light_drift
+        # Cast shadows: offset from the objects (px), blur (px), darkening ratio (every channel alike).
+        self.shadow_offset, self.shadow_sigma = shadow_offset, shadow_sigma
+        self.shadow_strength = shadow_strength
+        # Colour tables (p_colour of the scenes): a saturated, textured table and saturated objects of other
+        # hues, each object's grey level at least 40 from the table's (the detector thresholds grey).
+        self.p_colour = p_colour
 
 
 def _placed(name, px_per_cm, angle, centre):
@@ -99,10 +106,40 @@ def _colour(rng, level):
     return np.clip(level + rng.normal(0, 6, 3), 0, 255)
 
 
+GREY_WEIGHTS = np.array([0.114, 0.587, 0.299])  # B, G, R as in cv2.cvtColor(BGR2GRAY)
+
+
+def _hue_bgr(hue_deg, saturation, grey):
+    """A BGR colour of the given hue (0-360) and saturation (0-1) whose grey level is `grey`."""
+    h = math.radians(hue_deg)
+    # Chroma direction in RGB around grey, then scaled so the grey level comes out exactly.
+    rgb = np.array([math.cos(h), math.cos(h - 2 * math.pi / 3), math.cos(h + 2 * math.pi / 3)])
+    bgr = 1.0 + saturation * rgb[::-1]
+    bgr = bgr * grey / float(GREY_WEIGHTS @ bgr)
+    return np.clip(bgr, 0, 255)
+
+
+def _colour_table(rng):
+    """(hue, saturation, grey level) of a coloured table: a green cutting mat, a brown wood, a blue cloth..."""
+    return float(rng.uniform(0, 360)), float(rng.uniform(0.35, 0.6)), float(rng.uniform(90, 170))
+
+
+def _colour_object(rng, table_hue, table_grey):
+    """A saturated object colour: a hue at least 90 degrees from the table's, grey level 40-90 from it."""
+    hue = (table_hue + rng.uniform(90, 270)) % 360
+    grey = table_grey + rng.choice([-1, 1]) * rng.uniform(40, 90)
+    if grey < 25 or grey > 235:
+        grey = table_grey - np.sign(grey - table_grey) * rng.uniform(40, 90)
+    return _hue_bgr(hue, float(rng.uniform(0.4, 0.8)), float(np.clip(grey, 15, 245)))
+
+
 def render_scene(rng, spec, names, polarity=None, table_kind=None, shadow=None, empty=False, placed=None):
     """Returns (scene BGR uint8, background BGR uint8, truth dict). `placed`: a fixed layout (objs, near,
     touching) instead of a random one."""
     W, H = spec.width, spec.height
+    colour = None
+    if polarity is None and spec.p_colour > 0 and rng.random() < spec.p_colour:
+        polarity, colour = "colour", _colour_table(rng)
     if polarity is None and spec.p_mixed > 0 and rng.random() < spec.p_mixed:
         polarity = "mixed"
     polarity = polarity or ("light" if rng.random() < spec.p_light else "dark")
@@ -112,6 +149,8 @@ def render_scene(rng, spec, names, polarity=None, table_kind=None, shadow=None, 
         table_level, obj_range, amp = rng.uniform(165, 215), (30, 90), rng.uniform(6, 14)
     elif polarity == "mixed":
         table_level, obj_range, amp = rng.uniform(110, 140), None, rng.uniform(5, 10)
+    elif polarity == "colour":
+        table_level, obj_range, amp = colour[2], None, rng.uniform(6, 14)
     else:
         table_level, obj_range, amp = rng.uniform(35, 80), (165, 225), rng.uniform(5, 10)
     amp = 0.0 if table_kind == "uniform" else amp
@@ -121,8 +160,12 @@ def render_scene(rng, spec, names, polarity=None, table_kind=None, shadow=None, 
         objs, near, touching = ([], [], []) if empty else _layout(rng, spec, names)
 
     surface = render.table(rng, (H, W), table_kind, table_level, amp)
-    tint = rng.normal(0, 5, 3)
-    table_bgr = np.stack([surface + t for t in tint], axis=2)
+    if colour is None:
+        tint = rng.normal(0, 5, 3)
+        table_bgr = np.stack([surface + t for t in tint], axis=2)
+    else:  # the pattern modulates a saturated colour (texture in every channel, in proportion)
+        base = _hue_bgr(colour[0], colour[1], table_level)
+        table_bgr = (surface / table_level)[..., None] * base[None, None, :]
     light = render.illumination(rng, (H, W), rng.uniform(*spec.light_strength))
 
     alphas = [render.coverage(o[3], (H, W)) for o in objs]
@@ -133,20 +176,24 @@ def render_scene(rng, spec, names, polarity=None, table_kind=None, shadow=None, 
     if shadow and objs:
         total = np.clip(sum(alphas), 0, 1)
         th = rng.uniform(0, 2 * math.pi)
-        dist = rng.uniform(2.0, 5.0)
-        sigma, strength = rng.uniform(2.5, 4.5), rng.uniform(0.08, 0.18)
+        dist = rng.uniform(*spec.shadow_offset)
+        sigma, strength = rng.uniform(*spec.shadow_sigma), rng.uniform(*spec.shadow_strength)
         m = render.shadow_mask(total, dist * math.cos(th), dist * math.sin(th), sigma)
         scene *= (1.0 - strength * m)[..., None]
         shadow_info = {"offset_px": [dist * math.cos(th), dist * math.sin(th)], "sigma_px": sigma,
                        "strength": strength}
     levels = []
     for a in alphas:
-        if obj_range is None:  # mixed: each object dark or light at random
+        if colour is not None:
+            col = _colour_object(rng, colour[0], table_level)
+            level = float(GREY_WEIGHTS @ col)
+        elif obj_range is None:  # mixed: each object dark or light at random
             level = rng.uniform(20, 60) if rng.random() < 0.5 else rng.uniform(190, 235)
         else:
             level = rng.uniform(*obj_range)
         levels.append(level)
-        col = _colour(rng, level)
+        if colour is None:
+            col = _colour(rng, level)
         gx, gy = rng.normal(0, 0.02, 2)
         ys, xs = np.nonzero(a > 0)
         if not len(xs):
@@ -198,7 +245,8 @@ def render_scene(rng, spec, names, polarity=None, table_kind=None, shadow=None, 
     doc = {
         "generator": "rbx1-scenegen", "version": GENERATOR_VERSION,
         "image": {"width": W, "height": H}, "px_per_cm": s,
-        "polarity": polarity, "table": {"kind": table_kind, "level": table_level, "pattern_amplitude": amp},
+        "polarity": polarity, "table": {"kind": table_kind, "level": table_level, "pattern_amplitude": amp,
+                                        **({"hue_deg": colour[0], "saturation": colour[1]} if colour else {})},
         "blur_sigma_px": blur, "noise_sigma": noise, "shadow": shadow_info, "light_drift": drift,
         "touching_pairs": [[a, b] for a, b, _ in touching],
         "near_pairs": [{"ids": [a, b], "gap_px": g} for a, b, g in near],
