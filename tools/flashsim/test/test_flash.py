@@ -167,7 +167,7 @@ def test_blank_board_holds_only_the_bootloader(board):
 def test_make_flash_uploads_to_a_blank_board(board):
     since = len(board.events())
     r, wall = make_flash(board.port)
-    assert r.returncode == 0, r.stdout + r.stderr
+    assert r.returncode == 0, r.stdout + r.stderr + "\nthe board's log:\n" + board.events()[since:]
     fw = read_hex(HEX)
     assert f"{len(fw)} bytes of flash verified" in r.stderr, r.stderr
     sim = board.upload_seconds(since)
