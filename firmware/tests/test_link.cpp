@@ -123,7 +123,8 @@ TEST_F(Fw, WindowFramesAreRunInOrderOnceAndOldOnesRefused) {
   EXPECT_EQ(frames_[1].seq, sb);
   EXPECT_EQ(frames_[1].type, RBX1_RESPONSE(RBX1_MSG_MOVE));
   EXPECT_EQ(frames_[1].payload[0], RBX1_OK);
-  EXPECT_EQ(exchange(encode(sb, RBX1_MSG_MOVE, pb.data(), (uint8_t)pb.size())).payload, frames_[1].payload);
+  std::vector<uint8_t> held_answer = frames_[1].payload;  // a copy: exchange() clears frames_
+  EXPECT_EQ(exchange(encode(sb, RBX1_MSG_MOVE, pb.data(), (uint8_t)pb.size())).payload, held_answer);
   run_until_idle();
   s = status();
   EXPECT_EQ(s.moves_accepted, RBX1_WINDOW + 2);
