@@ -1,6 +1,8 @@
 // components.cpp - one polarity's cleaned binary image, streamed row by row, and its components by runs.
 #include "components.hpp"
 
+#include "avx2_clones.hpp"
+
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
@@ -79,7 +81,7 @@ void unite(std::vector<Run>& runs, int a, int b) {
 
 // The byte loops take 32 pixels at a time where the CPU has AVX2 (a clone chosen when the program loads;
 // integer arithmetic only, so the results are the same either way).
-__attribute__((target_clones("avx2", "default")))
+RBX1_AVX2_CLONES
 long long label_components(const cv::Mat& gray, const cv::Mat& background, int s, int low, int high, int first_label,
                            cv::Mat& labels, std::vector<Component>& comps) {
   CV_Assert(gray.type() == CV_8U && background.type() == CV_8U && gray.size() == background.size());

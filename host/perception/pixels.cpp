@@ -1,6 +1,8 @@
 // pixels.cpp - fused pixel loops over the objects' ROIs, bit-equal to the OpenCV calls they replace.
 #include "pixels.hpp"
 
+#include "avx2_clones.hpp"
+
 #include <algorithm>
 #include <cstring>
 #include <vector>
@@ -9,7 +11,7 @@ namespace rbx1::vision {
 
 // The byte and float loops take 32 bytes at a time where the CPU has AVX2 (a clone chosen when the program
 // loads; without fused multiply-adds, so the results are the same either way).
-__attribute__((target_clones("avx2", "default")))
+RBX1_AVX2_CLONES
 void dilate_square(const cv::Mat& src, cv::Mat& dst, int r) {
   CV_Assert(src.type() == CV_8U && r >= 0);
   const int W = src.cols, H = src.rows;
@@ -47,7 +49,7 @@ int reflect101(int i, int n) {
 
 }  // namespace
 
-__attribute__((target_clones("avx2", "default")))
+RBX1_AVX2_CLONES
 int sobel_gradient(const cv::Mat& s, cv::Mat& gx, cv::Mat& gy, float t2) {
   CV_Assert(s.type() == CV_32F);
   const int W = s.cols, H = s.rows;
