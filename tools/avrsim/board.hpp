@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "pinmap.hpp"
 
@@ -18,10 +19,11 @@ namespace rbx1::avrsim {
 
 class Board {
  public:
-  // Loads the ELF and bridges UART0. Returns false with error set.
-  bool open(const std::string& elf, const std::string& eeprom_file, std::string& error);
+  // Loads the ELF and bridges UART0 to a pty: through simavr's uart_pty (a thread of its own), or with
+  // own_bridge (benchmarks: --hold-for-host) through pump() in the simulation's thread. Returns false with error set.
+  bool open(const std::string& elf, const std::string& eeprom_file, bool own_bridge, std::string& error);
   avr_t* avr() const { return avr_; }
-  const char* pty_path() const { return pty_.port[0].slavename; }
+  const char* pty_path() const { return pty_name_.c_str(); }
   // Drives an input pin to its asserted or released level.
   void set_estop(bool asserted);
   bool estop() const { return estop_; }
@@ -33,8 +35,12 @@ class Board {
   void set_uart_timing(uint32_t forced_baud);
   // Bytes the firmware sent that wait unread on the pty (the host has not read them yet).
   int host_unread() const;
-  // Whether bytes the host wrote still wait for the firmware's UART (in the pty or the bridge's buffers).
+  // Whether bytes the host wrote still wait for the firmware's UART (in the pty or the bridge's buffer).
   bool host_pending() const;
+  // own_bridge: moves bytes between the pty and UART0; the run loop calls it between slices. A burst the firmware
+  // sends is on the pty two byte times after its last byte, a byte the host writes reaches the UART within 1024
+  // cycles of simulated time (a cycle timer, armed again here after a reset cleared it).
+  void pump();
   // Writes the EEPROM to the --eeprom file (atomic rename). No-op without one.
   bool save_eeprom(std::string& error);
 
@@ -48,8 +54,23 @@ class Board {
 
   avr_t* avr_ = nullptr;
   ::avr_uart_t* uart0_ = nullptr;
-  uart_pty_t pty_{};
-  int slave_fd_ = -1;  // held open so the pty never reports EIO to simavr's reader thread
+  static void on_uart_output(avr_irq_t* irq, uint32_t value, void* param);
+  static void on_uart_xon(avr_irq_t* irq, uint32_t value, void* param);
+  static void on_uart_xoff(avr_irq_t* irq, uint32_t value, void* param);
+  static avr_cycle_count_t on_pump(avr_t* avr, avr_cycle_count_t when, void* param);
+  void feed();
+  void take_input();
+  void flush_out();
+  void pump_output();
+  uart_pty_t pty_{};    // without own_bridge
+  int master_fd_ = -1;  // own_bridge: the pty's master, non-blocking
+  int slave_fd_ = -1;   // held open so the pty never reports EIO while no host has the port open
+  std::string pty_name_;
+  avr_irq_t* uart_in_ = nullptr;
+  bool xon_ = false;                 // the UART takes input (receiver on, input FIFO not full)
+  std::vector<uint8_t> in_, out_;    // host -> UART not yet taken, UART -> host not yet written
+  size_t in_done_ = 0;
+  avr_cycle_count_t last_out_ = 0;   // when the firmware last sent a byte
   std::string eeprom_file_;
   bool estop_ = false;
   std::array<bool, 6> limits_{};

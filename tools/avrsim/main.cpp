@@ -172,7 +172,8 @@ int main(int argc, char** argv) {
   app.add_flag("--hold-for-host", hold_for_host,
                "benchmarks: simulated time stands still while the host is late (what the firmware sent waits unread "
                "and nothing the host wrote waits for the firmware) or says it is busy (--clock-file byte 8 = 1), so "
-               "figures in simulated cycles count the link, not the host's scheduling");
+               "figures in simulated cycles count the link, not the host's scheduling; the pty is then bridged in the "
+               "simulation's thread (simavr's uart_pty thread, late under load, let simulated time run meanwhile)");
   app.add_option("--clock-file", clock_file,
                  "benchmarks: a 16-byte file, mapped: the simulated time (cycles, u64 little-endian) at 0, kept "
                  "current, so a host can time out on the board's clock; at 8 a byte the host sets to 1 while busy");
@@ -185,7 +186,7 @@ int main(int argc, char** argv) {
   }
   Board board;
   std::string error;
-  if (!board.open(elf, eeprom, error)) {
+  if (!board.open(elf, eeprom, hold_for_host, error)) {
     std::fprintf(stderr, "rbx1-avrsim: %s\n", error.c_str());
     return 2;
   }
@@ -320,6 +321,7 @@ int main(int argc, char** argv) {
       }
     }
     board.set_uart_timing(uart_baud);
+    board.pump();
     if (sim_clock) *sim_clock = avr->cycle;
     control_commands();
     const double now = now_s();
