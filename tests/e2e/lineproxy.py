@@ -114,6 +114,7 @@ def _write_all(fd, data, timeout=1.0):
             select.select([], [fd], [], 0.01)
 
 
+STALL_S = 0.5
 NO_FAULTS = {"corrupt": 0.0, "drop": 0.0, "duplicate": 0.0, "delay_rate": 0.0, "delay_ms": 0.0}
 
 
@@ -133,6 +134,7 @@ class LineProxy:
         self.master = None
         self.target = None
         self.target_reopens = 0
+        self.stalls = []  # (start_ns, end_ns) of each pause over STALL_S between two turns of the loop
         self._stop = False
         self._open_target()
         self._open_side()
@@ -199,7 +201,14 @@ class LineProxy:
         self.to_host.clear()
 
     def _run(self):
+        last = time.monotonic_ns()
         while not self._stop:
+            # A proxy starved of CPU (a loaded machine) is a line that carries nothing: say so, as a fault of its own.
+            now_ns = time.monotonic_ns()
+            if now_ns - last > STALL_S * 1e9:
+                with self.lock:
+                    self.stalls.append((last, now_ns))
+            last = now_ns
             with self.lock:
                 m = self.master
             if self.target is None:
