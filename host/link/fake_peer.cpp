@@ -87,8 +87,13 @@ void FakePeer::handle(const rbx1_frame& f) {
     std::lock_guard<std::mutex> lock(mu_);
     received_.push_back({f.seq, f.type, f.crc, Clock::now()});
   }
-  if (drop_next > 0) {
+  const bool request = rbx1_request_len(f.type) >= 0;
+  if (request && drop_next > 0) {
     --drop_next;
+    return;
+  }
+  if (request && f.seq == drop_seq && drop_seq_times > 0) {
+    --drop_seq_times;
     return;
   }
   if (silence_after_type < 0) silence_left_ = -1;
@@ -117,6 +122,7 @@ void FakePeer::handle(const rbx1_frame& f) {
     return;
   }
   if (verdict == RBX1_WIN_UNKNOWN) {  // as the firmware: NAKed, not executed, no place in the order
+    ++unknown_;
     rbx1_nak nak{RBX1_UNKNOWN_TYPE};
     uint8_t p[RBX1_NAK_LEN];
     respond(f.seq, RBX1_MSG_NAK, p, rbx1_nak_pack(&nak, p), false);

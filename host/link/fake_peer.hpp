@@ -30,7 +30,9 @@ class FakePeer {
   void hang_up();  // closes the master: the slave side sees a hang-up, as when a USB device vanishes
 
   // Knobs.
-  std::atomic<int> drop_next{0};       // ignore the next N frames (silence)
+  std::atomic<int> drop_next{0};       // ignore the next N frames of a request type (silence; probes pass)
+  std::atomic<int> drop_seq{-1};       // ignore the next drop_seq_times frames of a request type with this SEQ
+  std::atomic<int> drop_seq_times{0};
   std::atomic<int> nak_next{0};        // answer the next N frames with a NAK, unexecuted ...
   std::atomic<uint8_t> nak_reason{RBX1_BAD_CRC};  // ... of this reason
   std::atomic<int> corrupt_next{0};    // execute, but send the next N responses with a broken CRC
@@ -53,6 +55,7 @@ class FakePeer {
   int cached_replies() const { return cached_replies_; }
   int refused() const { return refused_; }  // NAKs SEQ_GAP and SEQ_OLD sent
   int held() const { return held_; }        // NAKs HELD sent (requests kept ahead of a gap, copies included)
+  int unknown() const { return unknown_; }  // NAKs UNKNOWN_TYPE sent (frames of no request type: the link's probes)
   std::vector<int32_t> move_targets() const {  // MOVE target[0] in the order executed
     std::lock_guard<std::mutex> lock(mu_);
     return move_targets_;
@@ -86,6 +89,7 @@ class FakePeer {
   std::atomic<int> cached_replies_{0};
   std::atomic<int> refused_{0};
   std::atomic<int> held_{0};
+  std::atomic<int> unknown_{0};
   rbx1_window window_{};  // at-most-once memory, as in the firmware
   uint16_t moves_done_ = 0;
   uint8_t homed_ = 0, enabled_ = 0;  // SET_POSITION/HOME and ENABLE, reported by STATUS

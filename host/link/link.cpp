@@ -280,6 +280,22 @@ void Link::on_frame(void* ctx, const rbx1_frame* f) {
     self->counters_.naks++;
     rbx1_nak nak{};
     rbx1_nak_unpack(&nak, f->payload, f->len);
+    if (f->len == RBX1_NAK_LEN && nak.reason == RBX1_UNKNOWN_TYPE) {
+      // A stream's probe (PROTOCOL.md "Probe"): answered after every copy written before it, so each unanswered
+      // request, not held, whose latest copy went out before the probe lost it. The oldest probe with this SEQ is
+      // the earliest it can answer; older ones still waiting were lost.
+      auto& probes = self->probes_;
+      auto it = std::find_if(probes.begin(), probes.end(), [&](const auto& p) { return p.first == f->seq; });
+      if (it != probes.end()) {
+        const uint32_t copy = it->second;
+        probes.erase(probes.begin(), it + 1);
+        for (Waiter* o : self->waiting_)
+          if (!o->done && !o->held && !o->txs.empty() && o->txs.back() < copy) o->resend = true;
+        lock.unlock();
+        self->state_cv_.notify_all();
+        return;
+      }
+    }
     auto mark = [&](Waiter* w) {
       if (w && !w->done && w->seq == f->seq) {
         spdlog::debug("{}: NAK {} for seq {}", self->name_, rbx1_status_name(nak.reason), f->seq);
@@ -491,8 +507,11 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
   std::vector<Clock::time_point> sent_at(n);
   std::vector<uint8_t> burst;
   uint32_t tx = 0;  // copies written, in order (Waiter::txs)
-  // Under state_mu_: the copies get their places in the order before the reader can see an answer to them.
-  auto send = [&](const std::vector<size_t>& which, std::unique_lock<std::mutex>& lock) {
+  size_t base = 0, next = 0;
+  // Under state_mu_: the copies get their places in the order before the reader can see an answer to them. A
+  // write after which nothing more can go out until answers come (window full, or the last request written) that
+  // carries resends or the last request is followed by a probe (PROTOCOL.md "Probe").
+  auto send = [&](const std::vector<size_t>& which, bool resent, std::unique_lock<std::mutex>& lock) {
     burst.clear();
     for (size_t i : which) burst.insert(burst.end(), frames[i].begin(), frames[i].begin() + sizes[i]);
     auto now = Clock::now();
@@ -503,13 +522,21 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
       if (ws[i].release_resend) ws[i].release_copy = tx;
       ws[i].release_resend = false;
     }
+    if (win > 1 && (resent || next == n) && (next == n || next - base >= win)) {
+      const uint8_t seq = static_cast<uint8_t>(ws[base].seq - 1);  // never in flight
+      uint8_t probe[RBX1_MAX_FRAME];
+      const size_t len = rbx1_frame_encode(probe, sizeof probe, seq, RBX1_MSG_NAK, nullptr, 0);
+      burst.insert(burst.end(), probe, probe + len);
+      probes_.emplace_back(seq, ++tx);
+      counters_.probes++;
+    }
     lock.unlock();
     int r = write_frame(burst.data(), burst.size());
     lock.lock();
     return r;
   };
   std::unique_lock<std::mutex> lock(state_mu_);
-  size_t base = 0, next = 0;
+  probes_.clear();
   int tries = 0, result = 0;
   while (base < n) {
     if (next < n && next - base < win) {  // fill the window
@@ -518,7 +545,7 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
         fresh.push_back(next);
         waiting_.push_back(&ws[next]);
       }
-      if (int r = send(fresh, lock); r < 0) {
+      if (int r = send(fresh, false, lock); r < 0) {
         result = r;
         break;
       }
@@ -573,12 +600,13 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
     counters_.retransmissions += again.size();
     spdlog::debug("{}: resending {} frames from seq {} ({})", name_, again.size(), ws[again.front()].seq,
                   timed_out ? "timeout" : "lost copies");
-    if (int r = send(again, lock); r < 0) {
+    if (int r = send(again, true, lock); r < 0) {
       result = r;
       break;
     }
   }
   waiting_.clear();
+  probes_.clear();
   // Unanswered SEQs (after an unknown type: every later one) would be gaps in the firmware's order.
   if (result == -ETIMEDOUT || result == -EPROTO || result == -EOPNOTSUPP) resync_ = true;
   for (size_t i = 0; i < n; ++i) {
@@ -786,6 +814,7 @@ LinkStats Link::stats() const {
   s.reconnects = counters_.reconnects;
   s.bytes_sent = counters_.bytes_sent;
   s.bytes_received = counters_.bytes_received;
+  s.probes = counters_.probes;
   return s;
 }
 

@@ -6,6 +6,7 @@
 #include <condition_variable>
 #include <cerrno>
 #include <cstdint>
+#include <deque>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -41,6 +42,7 @@ struct LinkStats {
   uint64_t reconnects = 0;       // successful reconnect() calls
   uint64_t bytes_sent = 0;
   uint64_t bytes_received = 0;
+  uint64_t probes = 0;           // stream(): probes written (PROTOCOL.md "Probe")
 };
 
 // One request of a stream(): type and payload in; answered, and the response payload (status first), out.
@@ -186,6 +188,8 @@ class Link {
   uint8_t next_seq_ = 0;   // under state_mu_
   std::atomic<bool> resync_{false};  // a HELLO before the next request
   std::vector<Waiter*> waiting_;     // the requests in flight (under state_mu_)
+  // stream(): (SEQ, copy number) of the probes written whose NAK has not come, oldest first (under state_mu_)
+  std::deque<std::pair<uint8_t, uint32_t>> probes_;
   Waiter* estop_waiting_ = nullptr;  // the outstanding e-stop (under state_mu_)
   rbx1_decoder decoder_;   // reader thread only
   rbx1_hello_resp hello_{};
@@ -198,7 +202,7 @@ class Link {
 
   struct Counters {
     std::atomic<uint64_t> requests{0}, retransmissions{0}, timeouts{0}, naks{0}, stale{0}, rejected{0},
-        link_down{0}, reconnects{0}, bytes_sent{0}, bytes_received{0};
+        link_down{0}, reconnects{0}, bytes_sent{0}, bytes_received{0}, probes{0};
   } counters_;
 };
 

@@ -66,6 +66,7 @@ struct LinkTest : ::testing::Test {
     s.stale -= base.stale;
     s.rejected -= base.rejected;
     s.link_down -= base.link_down;
+    s.probes -= base.probes;
     return s;
   }
 };
@@ -231,8 +232,14 @@ TEST_F(LinkTest, StreamKeepsTheWindowInFlight) {
   EXPECT_EQ(peer.cached_replies(), 0);
   EXPECT_EQ(peer.refused(), 0);
   EXPECT_EQ(delta().retransmissions, 0u);
-  // SEQs on the wire: consecutive, each once.
+  // SEQs of the requests on the wire: consecutive, each once; then the one probe behind the last request (PROTOCOL.md
+  // "Probe": a frame of TYPE 0x7F with the SEQ before the oldest unanswered request), answered UNKNOWN_TYPE.
   auto rx = peer.received();
+  ASSERT_GE(rx.size(), 41u);
+  EXPECT_EQ(rx.back().type, RBX1_MSG_NAK);
+  EXPECT_EQ(delta().probes, 1u);
+  rx.pop_back();
+  EXPECT_EQ(rx.back().type, RBX1_MSG_MOVE);
   for (size_t i = rx.size() - 39; i < rx.size(); ++i) EXPECT_EQ(rx[i].seq, static_cast<uint8_t>(rx[i - 1].seq + 1));
 }
 
@@ -255,6 +262,7 @@ TEST_F(LinkTest, StreamHeldAnswersLostAreSentAgain) {
   // The filler's answer arrives broken: the held ones' answers show it ran (SEQ order), so it is sent again and
   // answered from memory, with no timeout.
   link.set_timing(2000, 5);  // no timeout in this test, however loaded the machine
+  const int cached0 = peer.cached_replies();  // a HELLO sent again in SetUp (a loaded machine) is answered too
   peer.drop_next = 1;
   peer.corrupt_next = 1;  // HELD NAKs do not use it: the filler's answer is the next response
   std::vector<rbx1_move_resp> out;
@@ -262,7 +270,7 @@ TEST_F(LinkTest, StreamHeldAnswersLostAreSentAgain) {
   ASSERT_EQ(link.move_stream(move_batch(10, 0), out, answered), 0);
   for (int i = 0; i < 10; ++i) EXPECT_EQ(out[i].status, RBX1_OK) << i;
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 10);
-  EXPECT_EQ(peer.cached_replies(), 1);
+  EXPECT_EQ(peer.cached_replies() - cached0, 1);
   EXPECT_LE(delta().retransmissions, 2u);  // the lost request, then its lost answer: once, whatever the reads
   EXPECT_EQ(delta().timeouts, 0u);
 }
@@ -299,6 +307,52 @@ TEST_F(LinkTest, StreamResendsOnlyWhatTheAnswersShowLost) {
   EXPECT_EQ(delta().timeouts, 0u);
 }
 
+TEST_F(LinkTest, StreamLostResendIsSentAgainAfterTheProbeNotTheTimeout) {
+  // The first request vanishes and so does its first resend (written when its followers came back held): the
+  // probe written behind that resend is answered after it, which shows it lost, and it goes again at once. Without
+  // the probe only the timeout (2 s here) would send it again: the count of timeouts tells.
+  link.set_timing(2000, 5);
+  const int cached0 = peer.cached_replies();  // a HELLO sent again in SetUp (a loaded machine) is answered too
+  peer.drop_seq = link.next_seq();
+  peer.drop_seq_times = 2;
+  std::vector<rbx1_move_resp> out;
+  std::vector<bool> answered;
+  ASSERT_EQ(link.move_stream(move_batch(10, 0), out, answered), 0);
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(out[i].status, RBX1_OK) << i;
+  std::vector<int32_t> in_order(10);
+  for (int i = 0; i < 10; ++i) in_order[i] = i;
+  EXPECT_EQ(peer.move_targets(), in_order);  // nothing lost, nothing twice, in order
+  EXPECT_EQ(peer.cached_replies(), cached0);
+  EXPECT_EQ(delta().timeouts, 0u);
+  EXPECT_EQ(delta().retransmissions, 2u);  // the first request's two resends, nothing else
+  EXPECT_GE(delta().probes, 2u);           // behind each resend (and behind the stream's last request)
+}
+
+TEST_F(LinkTest, StreamLostLastRequestIsSentAgainAfterTheProbe) {
+  // Nothing follows the stream's last request but the probe: its NAK shows the request lost, without a timeout.
+  link.set_timing(2000, 5);
+  const int cached0 = peer.cached_replies();
+  peer.drop_seq = static_cast<uint8_t>(link.next_seq() + 9);
+  peer.drop_seq_times = 1;
+  std::vector<rbx1_move_resp> out;
+  std::vector<bool> answered;
+  ASSERT_EQ(link.move_stream(move_batch(10, 0), out, answered), 0);
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 10);
+  EXPECT_EQ(peer.cached_replies(), cached0);
+  EXPECT_EQ(delta().timeouts, 0u);
+  EXPECT_EQ(delta().retransmissions, 1u);
+}
+
+TEST_F(LinkTest, StreamStopAndWaitWritesNoProbe) {
+  link.set_window(1);
+  std::vector<rbx1_move_resp> out;
+  std::vector<bool> answered;
+  ASSERT_EQ(link.move_stream(move_batch(5, 0), out, answered), 0);
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 5);
+  EXPECT_EQ(delta().probes, 0u);
+  EXPECT_EQ(peer.unknown(), 0);
+}
+
 TEST_F(LinkTest, StreamLinkDownSaysWhichWereAnswered) {
   link.set_timing(100, 2);
   peer.silence_after_type = RBX1_MSG_MOVE;  // three MOVEs run and are answered, then the line dies
@@ -307,9 +361,9 @@ TEST_F(LinkTest, StreamLinkDownSaysWhichWereAnswered) {
   std::vector<bool> answered;
   const size_t rx0 = peer.received().size();
   EXPECT_EQ(link.move_stream(move_batch(10, 0), out, answered), -ETIMEDOUT);
-  // The silence ends only after the peer has read every copy the link wrote (10 frames and the resends): a copy
-  // read after it would run (a loaded machine can hold the peer's thread back that long).
-  const size_t written = 10 + delta().retransmissions;
+  // The silence ends only after the peer has read every copy the link wrote (10 frames, the resends and the probes
+  // behind them): a copy read after it would run (a loaded machine can hold the peer's thread back that long).
+  const size_t written = 10 + delta().retransmissions + delta().probes;
   for (auto t0 = steady_clock::now(); peer.received().size() < rx0 + written && ms_since(t0) < 10000;)
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   ASSERT_EQ(peer.received().size(), rx0 + written);

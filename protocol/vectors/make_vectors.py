@@ -291,6 +291,13 @@ def window_vectors():
          (req(41), "new"), (req(41), "duplicate", 7), (frame.encode(42, 0x33, b"").hex(), "unknown"),
          (req(42), "new"), (hello(90), "new", None, 42), (frame.encode(91, 0x40, b"").hex(), "unknown"),
          (req(91), "new"), (req(93), "held")])
+    add("probe_keeps_the_hold", "a host's probe (PROTOCOL.md \"Probe\": TYPE 0x7F, no payload, the SEQ before the "
+        "oldest unanswered request) while requests are held: NAKed UNKNOWN_TYPE, nothing held is dropped or run, the "
+        "order does not move; the gap filled runs the held ones in order, the probe again changes nothing",
+        [(move(60, 0), "new"), (move(62, 2), "held"), (move(63, 3), "held"),
+         (frame.encode(60, MsgType.NAK, b"").hex(), "unknown"), (move(62, 2), "held"),
+         (frame.encode(60, MsgType.NAK, b"").hex(), "unknown"), (move(61, 1), "new", {"released": [1, 2]}),
+         (frame.encode(60, MsgType.NAK, b"").hex(), "unknown"), (move(64, 4), "new"), (move(62, 2), "duplicate", 1)])
     # The Python window agrees (the C test checks the same file).
     from rbx1proto.window import Window
     for v in V:

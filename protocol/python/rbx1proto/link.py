@@ -9,6 +9,7 @@ RESPONSE_BIT = 0x80
 SLOW_TYPES = (MsgType.CONFIG_SET, MsgType.CONFIG_RESET)  # they write EEPROM: answered within 1 s (PROTOCOL.md)
 SLOW_TIMEOUT = 1.0
 INTER_BYTE_TIMEOUT = 0.05  # a partial frame older than this is dropped after a rescan (PROTOCOL.md)
+PROBE_TYPE = MsgType.NAK  # a probe: a frame of no request type, NAKed UNKNOWN_TYPE in order (PROTOCOL.md "Probe")
 
 
 class LinkError(Exception):
@@ -34,6 +35,8 @@ class Link:
         self.seq = 0
         self.retransmissions = 0
         self.timeouts = 0  # stream(): silences that sent every unanswered request again
+        self.probes = 0    # stream(): probes written (PROTOCOL.md "Probe")
+        self.probe = True  # stream() writes probes (benchmarks turn them off for a baseline)
         self.max_window = window  # a cap on the firmware's window (None: the firmware's)
         self.window = 1           # requests in flight in stream(): min(max_window, HELLO's window)
         self.baudrate = baudrate
@@ -88,8 +91,11 @@ class Link:
         others). Each event is attributed to a copy by counting (the k-th event naming a request comes from its k-th
         copy or a later one), never by timing. When the oldest unanswered request has had no answer for the timeout,
         every unanswered one is sent again from the oldest, held ones included. The firmware answers those it had
-        executed from its window, and held ones HELD again. Raises LinkError after `retries` timeouts without
-        progress, or on a NAK SEQ_OLD (resending cannot cure it)."""
+        executed from its window, and held ones HELD again. A write after which nothing more can go out (the window
+        full, or the stream's last request written) that carries resends or the last request is followed by a probe
+        (PROTOCOL.md "Probe"): its NAK comes after the answers of every copy written before it, so a lost resend or a
+        lost last request is sent again then, not after the timeout. Raises LinkError after `retries` resends of the
+        oldest request without its answer, or on a NAK SEQ_OLD (resending cannot cure it)."""
         if self.resync:
             self.hello()
         frames = []
@@ -105,10 +111,11 @@ class Link:
         held = [False] * n       # the firmware said it holds the request (NAK HELD): not lost, not to resend
         release_copy = [0] * n   # the copy written because a held request's answer showed this one's answer lost
         by_release = set()       # requests to send again for that reason in this round
+        probes = []              # (SEQ, copy number) of the probes written whose NAK has not come, oldest first
         tx = 0
         base = nxt = tries = 0
 
-        def send(which):
+        def send(which, resent):
             nonlocal tx
             now = self.clock()
             for i in which:
@@ -118,18 +125,43 @@ class Link:
                 if i in by_release:
                     release_copy[i] = tx
             by_release.clear()
-            self.ser.write(b"".join(frames[i][2] for i in which))
+            data = b"".join(frames[i][2] for i in which)
+            # Nothing goes out after this write until answers come: a probe behind it shows what it lost.
+            if self.probe and win > 1 and (resent or nxt == n) and (nxt == n or nxt - base >= win):
+                tx += 1
+                seq = (frames[base][1] - 1) & 0xFF  # never in flight: answered before the oldest unanswered one
+                probes.append((seq, tx))
+                data += frame.encode(seq, PROBE_TYPE, b"")
+                self.probes += 1
+            self.ser.write(data)
+
+        def probe_answered(ev):
+            """The copy number of the probe a NAK UNKNOWN_TYPE answers (the oldest written with its SEQ: the earliest
+            it can be about; older probes still waiting were lost), else None."""
+            if ev.type != MsgType.NAK or ev.payload != messages.pack_nak(Status.UNKNOWN_TYPE):
+                return None
+            for k, (seq, copy) in enumerate(probes):
+                if seq == ev.seq:
+                    del probes[:k + 1]
+                    return copy
+            return None
 
         while base < n:
             if nxt < n and nxt - base < win:
                 fresh = list(range(nxt, min(n, base + win)))
                 nxt = fresh[-1] + 1
-                send(fresh)
+                send(fresh, False)
             wait = max(self.timeout, SLOW_TIMEOUT) if frames[base][0] in SLOW_TYPES else self.timeout
             again = set()
             for ev in self._read_events(sent_at[base] + wait - self.clock()):
                 if isinstance(ev, frame.Reject):
                     self.rejects += 1
+                    continue
+                copy = probe_answered(ev)
+                if copy is not None:
+                    # Every unanswered request not held whose latest copy went out before the probe lost it.
+                    again.update(j for j in range(base, nxt)
+                                 if results[j] is None and not held[j] and txs[j][-1] < copy)
                     continue
                 k = (ev.seq - frames[base][1]) & 0xFF
                 if k >= nxt - base:
@@ -199,7 +231,7 @@ class Link:
                         raise LinkError(f"{frames[base][0].name} seq {frames[base][1]}: no response after "
                                         f"{self.retries} retransmissions")
                 self.retransmissions += len(again)
-                send(again)
+                send(again, True)
         return results
 
     def _read_events(self, left):

@@ -40,7 +40,9 @@ class Peer(threading.Thread):
         self.held = []          # SEQs answered NAK HELD (copies of a held request included)
         self.corrupt = 0.0      # probability of flipping each received byte
         self.rng = random.Random(7)
-        self.drop = 0           # ignore the next N requests entirely
+        self.drop = 0           # ignore the next N requests entirely (frames of a request type: not the link's probes)
+        self.drop_seq = {}      # SEQ -> how many more frames with that SEQ to ignore entirely
+        self.probes = 0         # frames of no request type NAKed UNKNOWN_TYPE (the link's probes)
         self.nak = 0            # answer the next N requests with a NAK instead
         self.nak_reason = Status.BAD_CRC  # the reason those NAKs give
         self.lose = 0           # execute the next N requests but lose their responses
@@ -73,8 +75,11 @@ class Peer(threading.Thread):
         self.received.append(frame.encode(f.seq, f.type, f.payload))
         if self.silent:
             return
-        if self.drop:
+        if self.drop and messages.request_len(f.type) >= 0:
             self.drop -= 1
+            return
+        if self.drop_seq.get(f.seq, 0) and messages.request_len(f.type) >= 0:
+            self.drop_seq[f.seq] -= 1
             return
         if self.nak:
             self.nak -= 1
@@ -82,6 +87,7 @@ class Peer(threading.Thread):
             return
         verdict, cached, last = self.window.accept(f)
         if verdict == "unknown":
+            self.probes += 1
             self.send(frame.encode(f.seq, MsgType.NAK, messages.pack_nak(Status.UNKNOWN_TYPE)))
             return
         if verdict == "held":
@@ -303,6 +309,7 @@ def stream_moves(link, n, start=0):
 
 def test_stream_keeps_the_window_in_flight(pty_pair):
     link, peer = pty_pair
+    link.timeout = 2.0  # no timeout in this test, however loaded the machine (0.25 s fired once at load 15)
     link.hello()
     rs = stream_moves(link, 40)
     assert [r["status"] for r in rs] == [Status.OK] * 40
@@ -415,6 +422,41 @@ def test_stream_lost_filler_answer_is_sent_again_once(pty_pair):
     assert [r["status"] for r in rs] == [Status.OK] * 10
     assert peer.moves == list(range(10)) and peer.duplicates == 1
     assert link.retransmissions <= 2 and link.timeouts == 0  # the lost request, its lost answer: once each
+
+
+def test_stream_lost_resend_is_sent_again_after_the_probe_not_the_timeout(pty_pair):
+    # The first request vanishes and so does its first resend (written when its followers came back held): the
+    # probe written behind that resend is answered after it, which shows it lost; it goes again at once. Today's
+    # rule without the probe waited for the timeout (2 s here: the count of timeouts tells).
+    link, peer = pty_pair
+    link.timeout = 2.0
+    link.hello()
+    peer.drop_seq = {link.seq: 2}
+    rs = stream_moves(link, 10)
+    assert [r["status"] for r in rs] == [Status.OK] * 10
+    assert peer.moves == list(range(10)) and peer.duplicates == 0, "lost, repeated or reordered"
+    assert link.timeouts == 0 and link.retransmissions == 2  # the first request's two resends, nothing else
+    assert link.probes >= 2  # behind each resend (and behind the stream's last request)
+
+
+def test_stream_lost_last_request_is_sent_again_after_the_probe(pty_pair):
+    # Nothing follows the stream's last request but the probe: its NAK shows the request lost, without a timeout.
+    link, peer = pty_pair
+    link.timeout = 2.0
+    link.hello()
+    peer.drop_seq = {(link.seq + 9) & 0xFF: 1}
+    rs = stream_moves(link, 10)
+    assert [r["status"] for r in rs] == [Status.OK] * 10
+    assert peer.moves == list(range(10)) and peer.duplicates == 0
+    assert link.timeouts == 0 and link.retransmissions == 1
+
+
+def test_stream_stop_and_wait_writes_no_probe(pty_pair):
+    link, peer = pty_pair
+    link.max_window = 1
+    link.hello()
+    stream_moves(link, 5)
+    assert peer.moves == list(range(5)) and link.probes == 0 and peer.probes == 0
 
 
 def test_stream_held_then_estop_runs_nothing_held_and_resends(pty_pair):

@@ -315,6 +315,27 @@ def window_gap_held(b):
     expect(s["position"][0] == 45, f"position {s['position']}: held requests ran out of order")
 
 
+@check("probe_answered_in_order")
+def probe_answered_in_order(b):
+    # PROTOCOL.md "Probe": a frame of TYPE 0x7F with no payload is NAKed UNKNOWN_TYPE in its turn, after the
+    # answers of every frame before it, and changes nothing: a held request stays held, the order does not move.
+    before = b.status()
+    seqs, wires = move_frames(b, [30, 60])
+    pseq = (seqs[0] - 1) & 0xFF
+    probe = frame.encode(pseq, MsgType.NAK, b"")
+    ev = b.exchange_raw(wires[1] + probe, until=lambda e: len(naks(e)) >= 2, timeout=2)
+    want = [(seqs[1], Status.HELD), (pseq, Status.UNKNOWN_TYPE)]
+    expect(naks(ev) == want, f"held request then probe: expected NAKs {want}, got {ev}")
+    ev = b.exchange_raw(wires[0] + probe, until=lambda e: naks(e), timeout=2)
+    kinds = [(e.type, e.seq) for e in ev if isinstance(e, frame.Frame)]
+    want = [(MsgType.MOVE | 0x80, seqs[0]), (MsgType.MOVE | 0x80, seqs[1]), (MsgType.NAK, pseq)]
+    expect(kinds == want and naks(ev) == [(pseq, Status.UNKNOWN_TYPE)],
+           f"the gap filled, then a probe: expected {want} in that order, got {ev}")
+    s = b.wait_idle()
+    expect(s["moves_accepted"] == (before["moves_accepted"] + 2) & 0xFFFF, f"moves_accepted: {brief(s)}, expected +2")
+    expect(s["position"][0] == 60, f"position {s['position']}: the held request did not run after the filler")
+
+
 @check("window_held_dropped_by_estop")
 def window_held_dropped_by_estop(b):
     # An ESTOP drops the held requests, never run: after its answer each is NAKed SEQ_GAP. Filling the gap then
