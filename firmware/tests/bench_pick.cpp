@@ -2,7 +2,7 @@
 // clock (exact, the same run): "before" is the pick as one joint move per phase with the arm stopping between
 // moves (a zero-length MOVE between two moves is a stop: the look-ahead never runs on across it); "after" is the
 // pick with straight lines (host/arm/line.cpp) streamed to the look-ahead. Same firmware limits (defaults), same
-// joint speed (arm defaults), same object. Prints one JSON object (tools/bench/motion reads it), with each phase's
+// joint speed (arm defaults; and both again at 90 deg/s), same object. Prints one JSON object (tools/bench/motion reads it), with each phase's
 // time in both (from the previous entry's completion to the phase's last entry's completion).
 #include <cmath>
 #include <cstdio>
@@ -151,13 +151,31 @@ int main() {
     std::fprintf(stderr, "bench_pick: a run did not complete\n");
     return 1;
   }
+  // The same at the tests' fast joint speed (90 deg/s, as rbx1fw_line_tests): the lines run at the joints'
+  // limits there, not at a joint move's pace.
+  arm::ArmConfig fast = c;
+  fast.speeds.joint_speed_deg_s = 90.0;
+  std::vector<arm::Waypoint> joint_fast, line_fast;
+  if (!arm::plan_pick(fast, start, obj, "tray", joint_fast, error, false) ||
+      !arm::plan_pick(fast, start, obj, "tray", line_fast, error, true)) {
+    std::fprintf(stderr, "bench_pick: %s\n", error.c_str());
+    return 1;
+  }
+  std::string phases_before_fast, phases_after_fast;
+  const double before_fast = run(entries(joint_fast, true), start, phases_before_fast);
+  const double after_fast = run(entries(line_fast, false), start, phases_after_fast);
+  if (before_fast < 0 || after_fast < 0) {
+    std::fprintf(stderr, "bench_pick: a run did not complete\n");
+    return 1;
+  }
   size_t moves_before = 0, moves_after = 0;
   for (const auto& x : joint_plan) moves_before += x.kind == arm::WaypointKind::Move;
   for (const auto& x : line_plan) moves_after += x.kind == arm::WaypointKind::Move;
   std::printf("{\"pick_before_s\": %.3f, \"pick_after_s\": %.3f, \"pick_lines_stopping_s\": %.3f, "
               "\"after_over_before\": %.4f, \"moves_before\": %zu, \"moves_after\": %zu, \"gripper_dwell_s\": %.3f, "
-              "\"phases_before_s\": {%s}, \"phases_after_s\": {%s}}\n",
+              "\"phases_before_s\": {%s}, \"phases_after_s\": {%s}, \"pick_before_fast_s\": %.3f, "
+              "\"pick_after_fast_s\": %.3f, \"phases_after_fast_s\": {%s}}\n",
               before, after, lines_stopping, after / before, moves_before, moves_after, 3 * c.gripper.dwell_ms / 1000.0,
-              phases_before.c_str(), phases_after.c_str());
+              phases_before.c_str(), phases_after.c_str(), before_fast, after_fast, phases_after_fast.c_str());
   return 0;
 }

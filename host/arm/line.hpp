@@ -28,8 +28,9 @@ LineError line_error(const ArmConfig& cfg, const Steps& a, const Steps& b, const
 
 // Splits the straight line from `from` to `to` (top-down grasps) into step targets, the first move starting at
 // `start` (which must be the IK of `from` rounded to steps) and the last one ending at the IK of `to`. Segments
-// are halved until line_error() of each is within bounds. false + error (out of reach or limits on the way,
-// naming the point, or a segment that no split brings within bounds).
+// are halved until line_error() of each is within bounds, then on both sides of junctions where the firmware's
+// junction rule is ruled by a joint's velocity jump (README, Straight lines). false + error (out of reach or
+// limits on the way, naming the point, or a segment that no split brings within bounds).
 bool plan_line(const ArmConfig& cfg, const Steps& start, const Grasp& from, const Grasp& to, const LineBounds& bounds,
                std::vector<Steps>& out, std::string& error);
 

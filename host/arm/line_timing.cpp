@@ -24,6 +24,7 @@ struct Seg {
   double v0 = 0;           // stop rate: the first step's rate from rest
   bool stretched = false;  // the cap slows its rest-to-rest profile: joins only at its whole cruise
   double vstretch = 0;     // that profile's cruise
+  double bend = 0;         // entered at v, the ramps accelerate at a - bend v^2 (planner.h bend8)
 };
 
 std::vector<Seg> segments(const ArmConfig& cfg, const Steps& start, const std::vector<Steps>& targets) {
@@ -47,15 +48,26 @@ std::vector<Seg> segments(const ArmConfig& cfg, const Steps& start, const std::v
   return out;
 }
 
-// planner.cpp's junction(): the largest v^2 at which b may enter after p, or -1 when they do not join.
-double junction_sq(const ArmConfig& cfg, const Seg& p, const Seg& b) {
+// The curve bound leaves at least this share of a move's ramp acceleration to its ramps (planner.cpp kRampShare).
+constexpr double kRampShare = 0.25;
+
+// The bend's share of joint j's ACCEL at a junction passed at v^2 (per v^2: d_j / min(n, n')).
+double bend(const Seg& p, const Seg& b, int j) {
+  return std::fabs(p.d[j] / p.n - b.d[j] / b.n) / std::min(p.n, b.n);
+}
+
+// planner.cpp's junction(): the largest v^2 at which b may enter after p, or -1 when they do not join; when they
+// join, b's bend share (its ramps' acceleration falls by bend * v^2 from a when it enters at v, the chord of the
+// joints' limits up to the junction limit).
+double junction_sq(const ArmConfig& cfg, const Seg& p, Seg& b) {
   if (p.n == 0 || b.n == 0 || p.vc < p.v0 || b.vc < b.v0) return -1;
   double vj = std::min(p.vc, b.vc), vstart = vj;
   for (int j = 0; j < kJoints; ++j) {
     const double d = std::fabs(p.d[j] / p.n - b.d[j] / b.n);
     if (d * vj <= 0) continue;
-    const double acc = cfg.joints[j].accel_steps_s2;
-    vj = std::min({vj, std::sqrt(2 * acc * kJunctionLagSteps) / d, std::sqrt(acc * std::min(p.n, b.n) / d)});
+    const double acc = cfg.joints[j].accel_steps_s2, w = std::fabs(b.d[j]) / b.n;
+    vj = std::min({vj, std::sqrt(2 * acc * kJunctionLagSteps) / d,
+                   std::sqrt((acc - w * kRampShare * b.a) / bend(p, b, j))});
     vstart = std::min(vstart, std::sqrt(acc / 2) / d);
   }
   if (b.stretched && vj < 0.999 * b.vstretch) return -1;
@@ -63,6 +75,11 @@ double junction_sq(const ArmConfig& cfg, const Seg& p, const Seg& b) {
   if (vstart * vstart < floor || vj * vj < floor || b.v0 * b.v0 + 2 * b.a * b.n < floor ||
       p.v0 * p.v0 + 2 * p.a * p.n < floor)
     return -1;
+  double a = b.a;
+  for (int j = 0; j < kJoints; ++j)
+    if (b.d[j] != 0)
+      a = std::min(a, (cfg.joints[j].accel_steps_s2 - vj * vj * bend(p, b, j)) * b.n / std::fabs(b.d[j]));
+  b.bend = (b.a - a) / (vj * vj);
   return vj * vj;
 }
 
@@ -78,6 +95,22 @@ double seg_seconds(double n, double ve2, double vx2, double vc, double a) {
 double cap_of_ms(double n, uint16_t ms) { return kStepTimerHz / std::ceil(kStepTimerHz * ms * 1e-3 / n - 1e-9); }
 
 }  // namespace
+
+JunctionLimits junction_limits(const ArmConfig& cfg, const Steps& a, const Steps& b, const Steps& c) {
+  const std::vector<Seg> s = segments(cfg, a, {b, c});
+  JunctionLimits out;
+  out.jump = out.curve = 1e30;
+  out.cruise = std::min(s[0].vmax, s[1].vmax);
+  if (s[0].n == 0 || s[1].n == 0) return out;
+  for (int j = 0; j < kJoints; ++j) {
+    const double d = std::fabs(s[0].d[j] / s[0].n - s[1].d[j] / s[1].n), acc = cfg.joints[j].accel_steps_s2;
+    if (d <= 0) continue;
+    out.jump = std::min(out.jump, std::sqrt(2 * acc * kJunctionLagSteps) / d);
+    const double w = std::fabs(s[1].d[j]) / s[1].n;
+    out.curve = std::min(out.curve, std::sqrt((acc - w * kRampShare * s[1].a) / bend(s[0], s[1], j)));
+  }
+  return out;
+}
 
 double stream_seconds(const ArmConfig& cfg, const Steps& start, const std::vector<Steps>& targets,
                       const std::vector<double>& cap_steps_s) {
@@ -103,15 +136,16 @@ double stream_seconds(const ArmConfig& cfg, const Steps& start, const std::vecto
   for (size_t k = 0; k < c; ++k) exit[k] = s[k].v0 * s[k].v0;
   for (size_t k = c; k-- > 1;) {
     if (join[k] < 0) continue;
-    const double e = std::min(join[k], exit[k] + 2 * s[k].a * s[k].n);
+    const double e = std::min(join[k], (exit[k] + 2 * s[k].a * s[k].n) / (1 + 2 * s[k].bend * s[k].n));
     exit[k - 1] = e;
   }
   double t = 0;
   for (size_t k = 0; k < c; ++k) {
     const Seg& g = s[k];
     entry[k] = k > 0 && join[k] >= 0 ? exit[k - 1] : g.v0 * g.v0;
-    exit[k] = std::min(exit[k], entry[k] + 2 * g.a * g.n);
-    if (g.n > 0) t += seg_seconds(g.n, entry[k], exit[k], g.vc, g.a);
+    const double a = g.a - g.bend * entry[k];
+    exit[k] = std::min(exit[k], entry[k] + 2 * a * g.n);
+    if (g.n > 0) t += seg_seconds(g.n, entry[k], exit[k], g.vc, a);
   }
   return t;
 }

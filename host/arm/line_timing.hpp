@@ -17,6 +17,14 @@ namespace rbx1::arm {
 double stream_seconds(const ArmConfig& cfg, const Steps& start, const std::vector<Steps>& targets,
                       const std::vector<double>& cap_steps_s);
 
+// The junction a -> b -> c as the firmware's rule limits its dominant rate (steps/s): jump, a joint's velocity
+// change within JUNCTION_LAG_STEPS of lag; curve, a joint's velocity change spread over the shorter segment within
+// its ACCEL less the ramps' share; cruise, the slower segment's fastest rate within every joint's MAX_SPEED.
+struct JunctionLimits {
+  double jump = 0, curve = 0, cruise = 0;
+};
+JunctionLimits junction_limits(const ArmConfig& cfg, const Steps& a, const Steps& b, const Steps& c);
+
 struct LineTiming {
   std::vector<uint16_t> duration_ms;  // MOVE.duration_ms of each segment (its cruise cap: n / duration)
   double fastest_s = 0;               // the stream at every joint's limits (stream_seconds, no cap below them)

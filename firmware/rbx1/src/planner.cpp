@@ -57,6 +57,26 @@ static uint32_t sq4_of(float v) {
   return f > 4.0e9f ? 4000000000UL : (uint32_t)f;
 }
 
+// 8 a of block b entered at 4 v^2 = entry_sq4 (the bend's share taken off).
+static uint32_t a8_at(const plan_block *b, uint32_t entry_sq4) {
+  if (b->bend8 <= 0.0f) return b->a8_full;
+  float loss = b->bend8 * (float)entry_sq4;
+  return loss < (float)b->a8_full ? b->a8_full - (uint32_t)loss : 1;
+}
+
+// The ramps' a8 and the controlled stop's dv (interrupts off for the 8 bytes: the stepper reads them at a start).
+static void set_accel(plan_block *b, uint32_t a8) {
+  if (a8 == 0) a8 = 1;
+  if (b->a8 == a8) return;
+  // dv = a PLAN_V_ONE / PROFILE_TICK_HZ = 8.192 a8 / 8: 131 / 16 is 0.05% below, never a faster stop than a.
+  uint32_t dv = (a8 * 131UL) >> 4;
+  if (dv == 0) dv = 1;
+  hal_irq_state s = hal_irq_save();
+  b->a8 = a8;
+  b->dv = dv;
+  hal_irq_restore(s);
+}
+
 static uint32_t add_sat(uint32_t a, uint32_t b) { return a + b < a ? 0xFFFFFFFFUL : a + b; }
 
 // The junction rule (firmware/README.md, Look-ahead): at a junction the dominant rate v is continuous, so joint i
@@ -73,24 +93,35 @@ static uint32_t add_sat(uint32_t a, uint32_t b) { return a + b < a ? 0xFFFFFFFFU
 // sqrt(ACCEL / 2) / sqrt(2 ACCEL JUNCTION_LAG_STEPS): the start rate's share of the lag bound.
 static const float kStartOverJump = 0.5f / sqrtf((float)JUNCTION_LAG_STEPS);
 
-static void junction(plan_block *b, const plan_block *p, float vc, uint8_t stretched) {
+// The bend's share (firmware/README.md, Look-ahead): joint i's jump at the junction, spread over the shorter move,
+// adds v^2 d_i / min(n, n') to the acceleration of its ramp share, w_i a, so the move ramps at
+// a(v) = min_i (ACCEL_i - v^2 d_i / min(n, n')) / w_i after entering at v. The passes take the chord of that concave
+// function from v = 0 to the junction limit (a8 = a8_full - bend8 * 4 v^2, never above it), and the curve bound
+// leaves at least kRampShare of a to the ramps at the limit, so that a bend never stalls them:
+// v^2 d_i <= (ACCEL_i - w_i kRampShare a) min(n, n'). Sets b->bend8.
+static const float kRampShare = 0.25f;
+
+static void junction(plan_block *b, const plan_block *p, float vc, uint8_t stretched, float amax) {
   b->joins = 0;
   b->max_entry_sq4 = b->stop_sq4;
   if (!p || p->kind != BLOCK_MOVE || p->n == 0 || b->n == 0 || (p->joins & PLAN_NEVER_JOINS)) return;
   float vj = (float)p->vc / (float)PLAN_V_ONE;
   if (vc < vj) vj = vc;
   float vstart = vj;  // the same with jumps of at most the start rate: whether the moves join at all
-  const float pn = (float)p->n, bn = (float)b->n;
+  const float pn = (float)p->n, bn = (float)b->n, nmin = pn < bn ? pn : bn, per_n = 1.0f / nmin;
+  float bend[RBX1_JOINTS];  // d_i / min(n, n')
   for (uint8_t i = 0; i < RBX1_JOINTS; i++) {
     uint8_t bit = (uint8_t)(1u << i);
     float u = (float)p->steps[i] / pn, w = (float)b->steps[i] / bn;
     if (!(p->dir_positive & bit)) u = -u;
     if (!(b->dir_positive & bit)) w = -w;
     float d = fabsf(u - w);
+    bend[i] = d * per_n;
     if (d * vj > 0.0f) {
       float acc = (float)SETTING(i, RBX1_KEY_ACCEL);
       // jump: the largest v within the lag bound (the start rate's bound is a constant share of it: no second sqrtf)
-      float jump = sqrtf(acc * (2.0f * JUNCTION_LAG_STEPS)) / d, curve = sqrtf(acc * (pn < bn ? pn : bn) / d);
+      float jump = sqrtf(acc * (2.0f * JUNCTION_LAG_STEPS)) / d;
+      float curve = sqrtf((acc - fabsf(w) * kRampShare * amax) / bend[i]);
       if (jump < vj) vj = jump;
       if (curve < vj) vj = curve;
       if (jump * kStartOverJump < vstart) vstart = jump * kStartOverJump;
@@ -105,6 +136,14 @@ static void junction(plan_block *b, const plan_block *p, float vc, uint8_t stret
   if (sq4_of(vstart) < floor || sq < floor || add_sat(b->stop_sq4, b->span_sq4) < floor || add_sat(p->stop_sq4, p->span_sq4) < floor) return;
   b->joins = PLAN_JOINS;
   b->max_entry_sq4 = sq;
+  float a = amax, v2 = vj * vj;
+  for (uint8_t i = 0; i < RBX1_JOINTS; i++) {
+    if (b->steps[i] == 0) continue;
+    float left = ((float)SETTING(i, RBX1_KEY_ACCEL) - v2 * bend[i]) * bn / (float)b->steps[i];
+    if (left < a) a = left;
+  }
+  b->bend8 = (amax - a) * 2.0f / v2;  // 8 (amax - a) per 4 v^2
+  b->keep = 1.0f / (1.0f + b->bend8 * bn);
 }
 
 uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6], uint16_t duration_ms,
@@ -172,24 +211,23 @@ uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6]
   }
   uint8_t never_joins = vjoin < v0;  // too short to run on at even its stop rate
   if (vjoin < v0) vjoin = v0;
-  b->a8 = (uint32_t)(8.0f * amax + 0.5f);  // 8 a s < 4 (vc^2 - v0^2) + 8 a on the ramps: fits
   b->v0 = to_fixed(v0);
   b->vc = to_fixed(vjoin);
   b->vc_rest = to_fixed(vc);
   b->stop_sq4 = sq4_of(v0);
   b->vc_sq4 = sq4_of(vjoin);
+  b->a8_full = (uint32_t)(8.0f * amax + 0.5f);  // 8 a s < 4 (vc^2 - v0^2) + 8 a on the ramps: fits
   float span = 8.0f * amax * fn;
   b->span_sq4 = span > 4.0e9f ? 0xFFFFFFFFUL : (uint32_t)span;
-  float dv = amax * (float)PLAN_V_ONE / (float)PROFILE_TICK_HZ;
-  b->dv = dv < 1.0f ? 1 : (dv > 4.0e9f ? 4000000000UL : (uint32_t)dv);
   float t_ms = t * 1000.0f;
   if (t_ms > (float)duration_ms) b->planned_ms = t_ms > 65535.0f ? 65535 : (uint16_t)(t_ms + 0.999f);
   b->entry_sq4 = b->exit_sq4 = b->stop_sq4;
-  b->decel_steps = b->vc_sq4 > b->stop_sq4 ? (b->vc_sq4 - b->stop_sq4) / b->a8 + 1 : 0;
   if (never_joins)
     b->joins = PLAN_NEVER_JOINS;
   else
-    junction(b, prev, vjoin, stretched);
+    junction(b, prev, vjoin, stretched, amax);
+  set_accel(b, a8_at(b, b->stop_sq4));
+  b->decel_steps = b->vc_sq4 > b->stop_sq4 ? (b->vc_sq4 - b->stop_sq4) / b->a8 + 1 : 0;
   return RBX1_OK;
 }
 
@@ -223,19 +261,40 @@ void planner_recalculate(void) {
     plan_block *b = q[k];
     uint32_t entry = b->stop_sq4;
     if (b->joins & PLAN_JOINS) {
-      entry = add_sat(exit[k], b->span_sq4);
+      // entry <= exit + n a8(entry), a8 falling with the entry by the bend's share: solved for the entry.
+      if (b->bend8 > 0.0f) {
+        float e = ((float)exit[k] + (float)b->span_sq4) * b->keep;
+        entry = e < 4.0e9f ? (uint32_t)e : 0xFFFFFFFFUL;
+      } else {
+        entry = add_sat(exit[k], b->span_sq4);
+      }
       if (entry > b->max_entry_sq4) entry = b->max_entry_sq4;
     }
     exit[k - 1] = (b->joins & PLAN_JOINS) ? entry : q[k - 1]->stop_sq4;
   }
-  // Forward: no exit faster than the move can reach from its own entry. Computed before anything is written, so
-  // the stepper never sees a running move's exit raised and lowered again: exits only rise as moves arrive.
+  // Forward: no exit faster than the move can reach from its own entry (at a8 of that entry). Computed before
+  // anything is written, so the stepper never sees a running move's exit raised and lowered again: exits only rise
+  // as moves arrive.
   uint32_t entry = q[0]->entry_sq4;
   for (uint8_t k = 0; k < c; k++) {
-    uint32_t reach = add_sat(entry, q[k]->span_sq4);
+    // The oldest keeps the a8 of its entry (it may be running); so does a move whose entry did not change.
+    uint32_t a8 = q[k]->a8, span = q[k]->span_sq4;
+    if (k && entry != q[k]->entry_sq4) {
+      q[k]->entry_sq4 = entry;
+      a8 = a8_at(q[k], entry);
+    }
+    if (a8 != q[k]->a8_full) {
+      if (a8 <= 0xFFFFUL && q[k]->n <= 0xFFFFUL) {
+        span = a8 * q[k]->n;
+      } else {
+        float f = (float)a8 * (float)q[k]->n;
+        span = f < 4.0e9f ? (uint32_t)f : 0xFFFFFFFFUL;
+      }
+    }
+    uint32_t reach = add_sat(entry, span);
     if (exit[k] > reach) exit[k] = reach;
+    if (k) set_accel(q[k], a8);
     entry = (k + 1 < c && (q[k + 1]->joins & PLAN_JOINS)) ? exit[k] : (k + 1 < c ? q[k + 1]->stop_sq4 : 0);
-    if (k + 1 < c) q[k + 1]->entry_sq4 = entry;
   }
   for (uint8_t k = 0; k < c; k++) set_exit(q[k], exit[k]);
 }

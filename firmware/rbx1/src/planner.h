@@ -31,14 +31,18 @@ struct plan_block {
   uint32_t v0;            // start/stop rate (the first step's rate from rest)
   uint32_t vc;            // nominal velocity when joined: the fastest the limits allow, at most n / duration_ms
   uint32_t vc_rest;       // cruise of the block run alone from rest to rest, stretched to end by duration_ms
-  uint32_t dv;            // velocity change per profile tick (ACCEL / 1000), for controlled stops
-  uint32_t a8;            // 8 a [steps/s^2]: along a ramp 4 v^2 changes by a8 per step
+  uint32_t dv;            // velocity change per profile tick (a / 1000), for controlled stops
+  uint32_t a8;            // 8 a [steps/s^2]: along a ramp 4 v^2 changes by a8 per step (set with the entry)
   uint32_t stop_sq4;      // 4 v0^2
   uint32_t vc_sq4;        // 4 vc^2
-  uint32_t span_sq4;      // a8 * n (saturated): how much 4 v^2 can change over the whole block
+  uint32_t a8_full;       // 8 a at every joint's ACCEL (a8 is that less the bend's share at the entry speed)
+  uint32_t span_sq4;      // a8_full * n (saturated): how much 4 v^2 can change over the whole block at most
+  float bend8;            // the bend's share: a8 = a8_full - bend8 * entry_sq4 (0 when it does not join)
+  float keep;             // 1 / (1 + bend8 n): the backward pass's entry from its exit (E <= (exit + span) keep)
   uint32_t max_entry_sq4; // junction limit with the previous entry (stop_sq4 when it does not join)
   // Look-ahead results, changed by planner_recalculate() while the entry waits or runs (interrupts off around
-  // each pair): 4 v^2 at entry and exit, and the steps of the ramp from vc down to the exit.
+  // each pair): 4 v^2 at entry and exit, and the steps of the ramp from vc down to the exit; a8 and dv with the
+  // entry (the stepper reads them when the entry starts).
   uint32_t entry_sq4;
   uint32_t exit_sq4;
   uint32_t decel_steps;
