@@ -11,6 +11,7 @@
 #include "draw.hpp"
 #include "locked_source.hpp"
 
+#include "board_limits.hpp"
 #include "joint_steps.hpp"
 #include "pick_plan.hpp"
 
@@ -343,6 +344,8 @@ bool Machine::prepare(std::string& error) {
     // Still usable for status and clear_fault: report ready=false but keep the link.
     return false;
   }
+  // Lines are timed at the config's joint limits: above the board's, nothing is planned (not ready, the reason).
+  if (!check_board_limits(link_, config_.arm, error)) return false;
   if (!st.enabled) {
     rbx1_enable_resp en{};
     if (link_.enable(true, en) < 0 || en.status != RBX1_OK) {

@@ -17,11 +17,22 @@ namespace {
 
 class MachineOnFakePeer : public ::testing::Test {
  protected:
+  // The board's MAX_SPEED and ACCEL as CONFIG_GET answers them: the config's keys (data/rbx1.toml: the firmware
+  // defaults), unless a test lowers one.
+  virtual void board_limits(link::test::FakePeer& peer) {
+    for (uint8_t j = 0; j < 6; ++j) {
+      peer.set_config(j, RBX1_KEY_MAX_SPEED, 4000);
+      peer.set_config(j, RBX1_KEY_ACCEL, 8000);
+    }
+  }
+  virtual bool wait_ready() const { return true; }
+
   void SetUp() override {
     // On a machine shared with other test runs, a fresh pty's name may be one a stale symlink elsewhere still
     // points at, and another process may hold it ("in use by another program"): take another pty then.
     for (int attempt = 0; attempt < 3; ++attempt) {
       peer_ = std::make_unique<link::test::FakePeer>();
+      board_limits(*peer_);
       config::Errors errors;
       Overrides o;
       o.port = peer_->slave_path();
@@ -33,6 +44,7 @@ class MachineOnFakePeer : public ::testing::Test {
       machine_ = std::make_unique<Machine>(config_);
       std::string error;
       ASSERT_EQ(machine_->start(error), 0) << error;
+      if (!wait_ready()) return;
       for (int i = 0; i < 100; ++i) {
         auto st = machine_->call(Command::Status);
         if (st.is_object() && st["result"].value("ready", false)) return;
@@ -75,13 +87,47 @@ TEST_F(MachineOnFakePeer, HomeKeepsTheLastGoodStatusWhenTheLineDiesAfterTheMove)
 }
 
 TEST_F(MachineOnFakePeer, ClearFaultKeepsTheLastGoodStatusWhenTheLineDiesAfterPreparing) {
-  // CLEAR_FAULT, then the two STATUS of the preparation (first and final); any STATUS after them fails.
-  peer_->silence_after_count = 2;
+  // CLEAR_FAULT, then the preparation's first STATUS, its 12 CONFIG_GETs of the board's limits and its final
+  // STATUS; any STATUS after them fails.
+  peer_->silence_after_count = 14;
   peer_->silence_after_type = RBX1_MSG_CLEAR_FAULT;
   auto r = machine_->call(Command::ClearFault);
   ASSERT_TRUE(r.contains("result")) << r.dump();
   expect_real_status(r["result"]["firmware"]);
   expect_real_status(firmware());
+}
+
+// The board's ACCEL of joint 3 and MAX_SPEED of joint 5 below the config's keys: the daemon plans nothing (status
+// not ready, naming both keys; a job not_ready with the reason) and never enables or homes the arm.
+class MachineOnASlowerBoard : public MachineOnFakePeer {
+ protected:
+  void board_limits(link::test::FakePeer& peer) override {
+    MachineOnFakePeer::board_limits(peer);
+    peer.set_config(2, RBX1_KEY_ACCEL, 6000);
+    peer.set_config(4, RBX1_KEY_MAX_SPEED, 3999);
+  }
+  bool wait_ready() const override { return false; }
+};
+
+TEST_F(MachineOnASlowerBoard, RefusesToPlanAndSaysWhy) {
+  const std::string why =
+      "the config's joint limits exceed the board's: arm.joints.j3.accel_steps_s2 = 8000 is above the board's ACCEL "
+      "6000; arm.joints.j5.max_speed_steps_s = 4000 is above the board's MAX_SPEED 3999 (lower the keys, or raise "
+      "the board's with CONFIG_SET: PROTOCOL.md)";
+  nlohmann::json st;
+  for (int i = 0; i < 500; ++i) {  // the worker's first preparation: up to 10 s on a loaded machine
+    st = machine_->call(Command::Status)["result"];
+    if (st["link"].value("error", "") == why) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_EQ(st["link"].value("error", ""), why) << st.dump();
+  EXPECT_EQ(st["ready"], false) << st.dump();
+  auto r = machine_->call(Command::Home);
+  ASSERT_TRUE(r.contains("error")) << r.dump();
+  EXPECT_EQ(r["error"]["code"], "not_ready") << r.dump();
+  EXPECT_EQ(r["error"]["message"], why) << r.dump();
+  EXPECT_EQ(peer_->executed(RBX1_MSG_ENABLE), 0);
+  EXPECT_EQ(peer_->executed(RBX1_MSG_MOVE), 0);
 }
 
 }  // namespace

@@ -233,6 +233,10 @@ uint8_t FakePeer::execute(const rbx1_frame& f, uint8_t* resp) {
       rbx1_config_get_req q{};
       rbx1_config_get_req_unpack(&q, f.payload, f.len);
       rbx1_config_get_resp g{RBX1_OK, q.joint * 100 + q.key};
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        if (auto it = config_.find(q.joint << 8 | q.key); it != config_.end()) g.value = it->second;
+      }
       return rbx1_config_get_resp_pack(&g, resp);
     }
     default:

@@ -49,6 +49,12 @@ class FakePeer {
   std::atomic<int> silence_after_type{-1};
   std::atomic<int> silence_after_count{0};
 
+  // CONFIG_GET answers this value for (joint, key); any other is joint * 100 + key.
+  void set_config(uint8_t joint, uint8_t key, int32_t value) {
+    std::lock_guard<std::mutex> lock(mu_);
+    config_[joint << 8 | key] = value;
+  }
+
   // Records.
   std::vector<Received> received() const;
   int executed(uint8_t type) const;
@@ -81,6 +87,7 @@ class FakePeer {
   std::atomic<bool> stop_{false};
   rbx1_decoder decoder_;
   mutable std::mutex mu_;
+  std::map<int, int32_t> config_;  // set_config (under mu_)
   std::vector<Received> received_;
   std::map<uint8_t, int> executed_;
   std::vector<int32_t> move_targets_;

@@ -54,6 +54,8 @@ def test_move_timeout_fails_the_job_and_stops_the_arm(sim, daemon_factory):
     slow_firmware(sim.port, 1500)  # the scan pose move takes seconds instead of its planned fraction of one
     cfg = fast_config()
     cfg["daemon"]["move_timeout_s"] = 0.3
+    for j in range(1, 7):  # the config's limits within the board's (else not ready); joint moves keep FAST_DEG_S
+        cfg["arm"]["joints"][f"j{j}"]["max_speed_steps_s"] = 1500
     d = daemon_factory(sim.port, cfg)
     events, final, took = timed(d, {"cmd": "scan"})
     assert final["error"]["code"] == "timeout", final
