@@ -14,13 +14,23 @@ bool detect(const cv::Mat& gray, const cv::Mat& background_gray, const DetectorO
   if (!background_gray.empty()) {
     cv::Mat bg = background_gray;
     if (opt.compensate_light && bg.size() == gray.size()) out.light = compensate_light(gray, background_gray, &bg);
-    if (opt.shadows && colour && bg.size() == gray.size()) {
+    if (opt.shadows && colour && bg.size() == gray.size() && coloured_background(colour->background, opt.shadow)) {
       // The table in shade is table: there the background takes the frame's own grey (no contrast).
       cv::Mat shade;
       out.shadow_px = shadow_mask(colour->frame, colour->background, out.light, opt.shadow, shade);
       if (out.shadow_px > 0) {
         bg = bg.clone();
         gray.copyTo(bg, shade);
+      }
+    } else if (opt.shadows && bg.size() == gray.size()) {
+      // A grey table: the shade found by its soft edges and its caster; the background in that shade.
+      cv::Mat shade, factor;
+      out.shadow_px = grey_shade_mask(gray, bg, opt.grey_shade, shade, factor);
+      if (out.shadow_px > 0) {
+        cv::Mat shaded;
+        bg.convertTo(shaded, CV_32F);
+        shaded = shaded.mul(factor);
+        shaded.convertTo(bg, CV_8U);
       }
     }
     if (!contrast_from_background(gray, bg, opt.objects, opt.isolation.min_contrast, con, error)) return false;

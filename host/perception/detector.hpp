@@ -24,6 +24,7 @@ struct DetectorOptions {
   bool compensate_light = true;  // with a known background: fit gain and offset to the scene's light first
   bool shadows = true;           // with a known colour background and colour frame: shade is table (shadow.hpp)
   ShadowOptions shadow;
+  GreyShadeOptions grey_shade;   // with a known grey background: shade found by its soft edges and caster
   double px_per_cm = 0;  // when > 0, identification compares sizes in cm^2 (entries taught with a scale)
 };
 
@@ -31,7 +32,7 @@ struct Detection {
   cv::Size size;
   int sign = -1;                       // polarity used: -1 dark objects, +1 light, 0 both
   LightFit light;                      // the light change fitted against the known background
-  int shadow_px = 0;                   // pixels taken as the table in shade (colour background only)
+  int shadow_px = 0;                   // pixels taken as the table in shade
   Isolation isolation;                 // label image (neighbours for finger clearance)
   std::vector<DetectedObject> objects;
   std::vector<std::vector<double>> profiles;  // identity profile per object

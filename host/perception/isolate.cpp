@@ -147,9 +147,11 @@ void drop_fringes(const Contrast& con, const IsolationOptions& opt, Isolation& o
         if (o > 0 && o != l.label && out.sign[size_t(o)] == l.sign)
           shade = shade || (level[size_t(o)] >= opt.fringe_ratio * l.level && area[size_t(l.label)] <= 0.25 * area[size_t(o)]);
         if (o <= 0 || out.sign[size_t(o)] == l.sign) continue;
-        ++n_other;
         ++shared[o];
         strongest = std::max(strongest, level[size_t(o)]);
+        // A far fainter neighbour of the other polarity is this object's own shadow or glare (a light
+        // part's dark cast shadow can wrap half its outline): it does not make this a detail of it.
+        n_other += opt.fringe_ratio * level[size_t(o)] > l.level;
       }
     }
     drop[i] = n_other >= 0.4 * n_ring || (n_other > 0 && strongest >= opt.fringe_ratio * l.level) || shade;

@@ -29,6 +29,215 @@ double median_chroma(const cv::Mat& background) {
 
 }  // namespace
 
+bool coloured_background(const cv::Mat& background_bgr, const ShadowOptions& opt) {
+  return background_bgr.type() == CV_8UC3 && median_chroma(background_bgr) >= opt.min_chroma;
+}
+
+int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreyShadeOptions& opt, cv::Mat& mask,
+                    cv::Mat& factor) {
+  mask = cv::Mat::zeros(gray.size(), CV_8U);
+  factor.release();
+  if (gray.type() != CV_8U || background.type() != CV_8U || gray.size() != background.size()) return 0;
+  // Candidates: darker than the table by a ratio in the shade's range (1); darker still (2): an object.
+  cv::Mat cls(gray.size(), CV_8U);
+  int lo[256], hi[256];  // per background level: the grey range of a candidate
+  for (int v = 0; v < 256; ++v) {
+    lo[v] = int(std::ceil(opt.min_ratio * v));
+    hi[v] = int(std::floor(std::min(opt.max_ratio * v, v - opt.min_depth)));
+  }
+  bool any = false;
+  for (int y = 0; y < gray.rows; ++y) {
+    const uchar* g = gray.ptr<uchar>(y);
+    const uchar* b = background.ptr<uchar>(y);
+    uchar* c = cls.ptr<uchar>(y);
+    for (int x = 0; x < gray.cols; ++x) {
+      const int v = g[x];
+      c[x] = uchar(v < lo[b[x]] ? 2 : v <= hi[b[x]] ? 1 : 0);
+      any |= c[x] != 0;
+    }
+  }
+  if (!any) return 0;
+  // Regions darker than the table; each split in two by its ratio (Otsu): the lighter part is shade when it is
+  // no larger than the darker part, lies against it, and borders the lit table along part of its outline.
+  cv::Mat dark = cls != 0, lab, stats, cents;
+  cv::morphologyEx(dark, dark, cv::MORPH_OPEN, cv::Mat::ones(3, 3, CV_8U));
+  const int n = cv::connectedComponentsWithStats(dark, lab, stats, cents, 8, CV_32S);
+  const cv::Rect frame(0, 0, gray.cols, gray.rows);
+  int total = 0;
+  cv::Mat q(gray.size(), CV_8U);  // the ratio gray / background on 0-255, over the regions only
+  for (int i = 1; i < n; ++i) {
+    if (stats.at<int>(i, cv::CC_STAT_AREA) < 2 * opt.min_area_px) continue;
+    const cv::Rect box(stats.at<int>(i, cv::CC_STAT_LEFT), stats.at<int>(i, cv::CC_STAT_TOP),
+                       stats.at<int>(i, cv::CC_STAT_WIDTH), stats.at<int>(i, cv::CC_STAT_HEIGHT));
+    const cv::Rect r = cv::Rect(box.x - 3, box.y - 3, box.width + 6, box.height + 6) & frame;
+    cv::Mat own = lab(r) == i;
+    int hist[256] = {0};
+    for (int y = 0; y < r.height; ++y) {
+      const uchar* o = own.ptr<uchar>(y);
+      const uchar* g = gray.ptr<uchar>(r.y + y) + r.x;
+      const uchar* b = background.ptr<uchar>(r.y + y) + r.x;
+      uchar* qq = q.ptr<uchar>(r.y + y) + r.x;
+      for (int x = 0; x < r.width; ++x) {
+        if (!o[x]) continue;
+        qq[x] = uchar(std::min(255, 255 * g[x] / std::max<int>(b[x], 1)));
+        hist[qq[x]]++;
+      }
+    }
+    // Otsu's threshold over the region's ratios.
+    double sum = 0, cnt = 0;
+    for (int v = 0; v < 256; ++v) sum += double(v) * hist[v], cnt += hist[v];
+    double best = -1, s0 = 0, c0 = 0;
+    int t = 0;
+    for (int v = 0; v < 255; ++v) {
+      s0 += double(v) * hist[v], c0 += hist[v];
+      if (c0 == 0 || c0 == cnt) continue;
+      const double m0 = s0 / c0, m1 = (sum - s0) / (cnt - c0), between = c0 * (cnt - c0) * (m1 - m0) * (m1 - m0);
+      if (between > best) best = between, t = v + 1;
+    }
+    // Then halfway between the two parts' medians (k-medians): a large dark object would otherwise pull
+    // the threshold into the shade's plateau.
+    auto median_in = [&](int from, int to) {
+      int c = 0, acc = 0;
+      for (int v = from; v < to; ++v) c += hist[v];
+      for (int v = from; v < to; ++v)
+        if ((acc += hist[v]) * 2 >= c) return v;
+      return from;
+    };
+    for (int it = 0; it < 4 && t > 0 && t < 256; ++it) t = (median_in(0, t) + median_in(t, 256) + 1) / 2;
+    // The darker part is its plateau (median and spread); all above it goes to the lighter side, so that the
+    // threshold never cuts through the shade's plateau (the darker part's edge is set apart below).
+    const int med_a = median_in(0, t);
+    {
+      int dev[256] = {0}, c = 0, acc = 0, mad = 0;
+      for (int v = 0; v < t; ++v) dev[std::abs(v - med_a)] += hist[v], c += hist[v];
+      for (int v = 0; v < 256; ++v)
+        if ((acc += dev[v]) * 2 >= c) {
+          mad = v;
+          break;
+        }
+      t = std::min(t, med_a + std::max(13, 4 * mad));
+    }
+    double sa = 0, ca = 0;
+    for (int v = 0; v < t; ++v) sa += double(v) * hist[v], ca += hist[v];
+    const double ma = sa / std::max(ca, 1.0), mb = (sum - sa) / std::max(cnt - ca, 1.0);
+    if (ca == 0 || mb - ma < 255 * opt.caster_margin || mb < 255 * opt.min_ratio) continue;
+    cv::Mat part_a(r.size(), CV_8U), part_b(r.size(), CV_8U);
+    for (int y = 0; y < r.height; ++y) {
+      const uchar* o = own.ptr<uchar>(y);
+      const uchar* qq = q.ptr<uchar>(r.y + y) + r.x;
+      uchar* pa = part_a.ptr<uchar>(y);
+      uchar* pb = part_b.ptr<uchar>(y);
+      for (int x = 0; x < r.width; ++x) {
+        pa[x] = uchar(o[x] && qq[x] < t ? 255 : 0);
+        pb[x] = uchar(o[x] && qq[x] >= t ? 255 : 0);
+      }
+    }
+    // The darker part's blurred rim (up to 4 px wide) lies in the lighter range too: an opening leaves only
+    // pieces of real extent (each then regains its own corners).
+    cv::Mat near_a, plab, pstats, pcents, seeds;
+    cv::morphologyEx(part_b, seeds, cv::MORPH_OPEN, cv::Mat::ones(5, 5, CV_8U));
+    cv::dilate(part_a, near_a, cv::Mat::ones(5, 5, CV_8U));
+    const int np = cv::connectedComponentsWithStats(seeds, plab, pstats, pcents, 8, CV_32S);
+    bool found = false;
+    for (int j = 1; j < np; ++j) {
+      const int area = pstats.at<int>(j, cv::CC_STAT_AREA);
+      if (area < opt.min_area_px || area > ca) continue;
+      long soft = 0, edge = 0, against = 0;
+      for (int y = 0; y < r.height; ++y) {
+        const int* pl = plab.ptr<int>(y);
+        const uchar* na = near_a.ptr<uchar>(y);
+        for (int x = 0; x < r.width; ++x) {
+          if (pl[x] != j) continue;
+          against += na[x] != 0;
+          const int nx[4] = {x - 1, x + 1, x, x}, ny[4] = {y, y, y - 1, y + 1};
+          for (int k = 0; k < 4; ++k) {
+            if (nx[k] < 0 || ny[k] < 0 || nx[k] >= r.width || ny[k] >= r.height) continue;
+            if (plab.at<int>(ny[k], nx[k]) == j) continue;
+            ++edge;
+            soft += cls.at<uchar>(r.y + ny[k], r.x + nx[k]) == 0;
+          }
+        }
+      }
+      if (against < 3 || soft < opt.min_soft * double(edge)) continue;
+      // The piece holds the darker part's blurred edge too: the shade is what reaches its 20th percentile
+      // (less the noise); the edge below is left to the coverage correction.
+      int ph[256] = {0}, pn = 0, kp = 0;
+      cv::Mat piece = plab == j, grown;
+      for (int it = 0; it < 2; ++it) {
+        cv::dilate(piece, grown, cv::Mat::ones(3, 3, CV_8U));
+        piece = grown & part_b;
+      }
+      for (int y = 0; y < r.height; ++y) {
+        const uchar* pm = piece.ptr<uchar>(y);
+        const uchar* qq = q.ptr<uchar>(r.y + y) + r.x;
+        for (int x = 0; x < r.width; ++x)
+          if (pm[x]) ph[qq[x]]++, ++pn;
+      }
+      for (int v = 0, acc = 0; v < 256; ++v)
+        if ((acc += ph[v]) * 5 >= pn) {
+          kp = v;
+          break;
+        }
+      // A shade shallower than 40 % of the darker part's depth is below its half level already (the
+      // isolation's soft layer leaves it out): left alone.
+      if (255 - kp < 0.4 * (255 - med_a)) continue;
+      // A penumbra is soft: its 25-75 % band between the piece's level and the lit table is wider than an
+      // object's blurred edge (on average over the piece's table side, in px).
+      const int band_lo = kp + (255 - kp) / 4, band_hi = kp + 3 * (255 - kp) / 4;
+      long band = 0;
+      for (int v = band_lo; v <= band_hi; ++v) band += ph[v];
+      if (double(band) < opt.min_penumbra_px * double(soft)) continue;
+      piece &= q(r) >= kp - 6;
+      mask(r).setTo(255, piece);
+      total += cv::countNonZero(piece);
+      found = true;
+    }
+    if (!found) continue;
+    // The factor: gray / background on the shade; beside it (the darker part's edge over shaded table, within
+    // 2 px) the background that gives such a pixel its true coverage of the darker part (the part's median
+    // ratio over the shade's ratio nearby), so the outline neither bulges into the shade nor bites into itself.
+    if (factor.empty()) factor = cv::Mat(gray.size(), CV_32F, cv::Scalar(1));
+    int acc = 0, med = 0;
+    for (int v = 0; v < t; ++v)
+      if ((acc += hist[v]) * 2 >= int(ca)) {
+        med = v;
+        break;
+      }
+    const float o = float(med) / 255.f;
+    cv::Mat sh = mask(r), ratio(r.size(), CV_32F, cv::Scalar(0)), weight, spread;
+    for (int y = 0; y < r.height; ++y) {
+      const uchar* m = sh.ptr<uchar>(y);
+      const uchar* qq = q.ptr<uchar>(r.y + y) + r.x;
+      float* rr = ratio.ptr<float>(y);
+      for (int x = 0; x < r.width; ++x)
+        if (m[x]) rr[x] = float(qq[x]) / 255.f;
+    }
+    sh.convertTo(weight, CV_32F, 1.0 / 255);
+    cv::boxFilter(ratio, spread, CV_32F, cv::Size(5, 5), cv::Point(-1, -1), false);
+    cv::boxFilter(weight, weight, CV_32F, cv::Size(5, 5), cv::Point(-1, -1), false);
+    for (int y = 0; y < r.height; ++y) {
+      const uchar* m = sh.ptr<uchar>(y);
+      const uchar* ow = own.ptr<uchar>(y);
+      const uchar* g = gray.ptr<uchar>(r.y + y) + r.x;
+      const uchar* b = background.ptr<uchar>(r.y + y) + r.x;
+      const float* sp = spread.ptr<float>(y);
+      const float* w = weight.ptr<float>(y);
+      float* f = factor.ptr<float>(r.y + y) + r.x;
+      for (int x = 0; x < r.width; ++x) {
+        const float v = float(g[x]) / float(std::max<int>(b[x], 1));
+        if (m[x]) {
+          f[x] = v;
+        } else if (ow[x] && w[x] > 0) {
+          const float kk = sp[x] / w[x];
+          if (v >= kk || kk <= o) f[x] = std::min(1.f, v);
+          else f[x] = std::min(1.f, v + std::clamp((kk - v) / (kk - o), 0.f, 1.f) * (1.f - o));
+        }
+      }
+    }
+  }
+  return total;
+}
+
 int shadow_mask(const cv::Mat& frame, const cv::Mat& background, const LightFit& light, const ShadowOptions& opt,
                 cv::Mat& mask) {
   mask = cv::Mat::zeros(frame.size(), CV_8U);

@@ -17,6 +17,33 @@ struct ShadowOptions {
                               // object darker than the table would pass as shade
 };
 
+// On a grey table the ratio cannot tell a dark grey object from shade; what can: shade is bounded by soft
+// edges (its penumbra) on its table side and is attached to a darker object that casts it, across that
+// object's sharp edge, while an object is bounded by sharp edges all round.
+struct GreyShadeOptions {
+  double min_ratio = 0.35;     // shade darkens the table to between this fraction of its light...
+  double max_ratio = 0.985;    // ...and this (with at least min_depth levels): its penumbra included
+  double min_depth = 4;
+  double sharp_slope = 0.32;   // an edge is sharp where the grey slope (levels/px) exceeds this fraction of
+                               // the grey range over 7x7 around it: a blurred step of sigma <= 1.1 px peaks
+                               // above 0.36, a penumbra of sigma >= 1.5 px below 0.27
+  double min_penumbra_px = 1.8; // ...through a penumbra: its 25-75 % band this wide on average (a blurred object
+                               // edge of sigma <= 1.1 px is under 1.5 px; a shadow's of sigma >= 1.5 px over 2)
+  double min_soft = 0.1;       // shade: at least this fraction of its outline borders the lit table directly
+  double caster_margin = 0.08; // ...and beyond its sharp edges lies an object darker by this much of the table
+  int min_area_px = 20;        // smaller candidate pieces are left as they are
+};
+
+// The table in shade on a grey table: gray, background: CV_8U, same size (the background already in the
+// scene's light). Returns the number of shade pixels and `mask` (CV_8U, 255 = shade) and `factor` (CV_32F,
+// gray / background on shade pixels and carried 2 px beyond them, 1 elsewhere): the background in the scene's
+// shade is background * factor.
+int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreyShadeOptions& opt, cv::Mat& mask,
+                    cv::Mat& factor);
+
+// true when the background's median chroma reaches opt.min_chroma (the colour shadow test applies).
+bool coloured_background(const cv::Mat& background_bgr, const ShadowOptions& opt);
+
 // frame, background: CV_8UC3 (BGR), same size; light: the change fitted between them on grey
 // (compensate_light), applied to the background first. Returns the number of shadow pixels and `mask`
 // (CV_8U, 255 = shade; 3x3 opened: isolated pixels and 1-2 px rims are not shade); 0 and an all-zero mask when

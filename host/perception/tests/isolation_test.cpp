@@ -158,6 +158,33 @@ TEST(Isolation, SoftShadowDoesNotPullTheCentroid) {
   EXPECT_NEAR(d.objects[0].grip.opening_px, 50, 1.0);
 }
 
+TEST(Isolation, LightObjectsDarkShadowIsNotTheObject) {
+  // A light part (210) on a dark table (55) with its background, its strong cast shadow (40 % darker, offset
+  // 7 px right and down) along one long side and one end: the shadow wraps over 40 % of the part's outline. The
+  // shadow, a dark region far fainter than the part, is the part's fringe; the part is not a detail of it.
+  Poly bar = rectangle({320, 240}, 120, 40, 0);
+  Scene cov;
+  cov.background = 0, cov.object = 255;
+  cv::Mat a8 = to_gray8(render(cov, {bar})), alpha, shade;
+  a8.convertTo(alpha, CV_32F, 1.0 / 255);
+  cv::warpAffine(alpha, shade, cv::Mat_<double>({2, 3}, {1, 0, 7, 0, 1, 7}), alpha.size());
+  cv::GaussianBlur(shade, shade, cv::Size(), 2.0);
+  cv::Mat img = 55.0 * (1.0 - 0.4 * shade);
+  img = img.mul(1.0 - alpha) + 210.0 * alpha;
+  cv::Mat noise(img.size(), CV_32F), frame, bg;
+  cv::RNG(9).fill(noise, cv::RNG::NORMAL, 0, 2.0);
+  cv::Mat(img + noise).convertTo(frame, CV_8U);
+  cv::RNG(10).fill(noise, cv::RNG::NORMAL, 0, 2.0);
+  cv::Mat(cv::Mat(img.size(), CV_32F, cv::Scalar(55)) + noise).convertTo(bg, CV_8U);
+  Detection d;
+  std::string e;
+  ASSERT_TRUE(detect(frame, bg, {}, nullptr, d, e)) << e;
+  ASSERT_EQ(d.objects.size(), 1u);
+  EXPECT_LT(cv::norm(d.objects[0].geometry.centroid - poly_centroid(bar)), 0.3);
+  EXPECT_NEAR(d.objects[0].grip.opening_px, 40, 1.0);
+  EXPECT_GE(d.isolation.fringes, 1);
+}
+
 TEST(Isolation, TexturedObjectOnATexturedTableIsOneObject) {
   // A worn coin on a cloth (data/corpus/coins.png came out in 32 pieces for 24 coins): stripes of its relief
   // are only 28 levels above the table, whose texture (sigma 8) puts the threshold at 36. Regions grown down
