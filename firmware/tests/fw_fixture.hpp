@@ -71,6 +71,13 @@ class Fw : public ::testing::Test {
     return f;
   }
 
+  // Sends bytes (frames, garbage) at once and runs ms of simulated time: frames_ then holds every answer, in order.
+  void send_run(const std::vector<uint8_t>& bytes, uint32_t ms = 5) {
+    frames_.clear();
+    send_bytes(bytes.data(), bytes.size());
+    run_ms(ms);
+  }
+
   // Sends bytes and returns the first reply (response or NAK) within 20 ms, if any.
   Reply exchange(const std::vector<uint8_t>& frame) {
     frames_.clear();

@@ -114,10 +114,7 @@ TEST_F(Fw, WindowFramesAreRunInOrderOnceAndOldOnesRefused) {
   EXPECT_EQ(held.payload[0], RBX1_HELD);
   run_ms(5);
   EXPECT_EQ(sim::board().pulses[0], (uint64_t)RBX1_WINDOW * 10);  // not run
-  frames_.clear();
-  std::vector<uint8_t> fa = encode(sa, RBX1_MSG_MOVE, pa.data(), (uint8_t)pa.size());
-  send_bytes(fa.data(), fa.size());
-  run_ms(5);
+  send_run(encode(sa, RBX1_MSG_MOVE, pa.data(), (uint8_t)pa.size()));
   ASSERT_EQ(frames_.size(), 2u);  // the filler's answer, then the held one's
   EXPECT_EQ(frames_[0].seq, sa);
   EXPECT_EQ(frames_[1].seq, sb);
@@ -180,20 +177,14 @@ TEST_F(Fw, EstopDropsHeldFramesNakedAsGapsAndNeverRuns) {
   std::vector<uint8_t> fb = encode(sb, RBX1_MSG_MOVE, pb.data(), (uint8_t)pb.size());
   EXPECT_EQ(exchange(fb).payload[0], RBX1_HELD);
   // ESTOP: its answer, then NAK SEQ_GAP for the dropped one (not run: the host resends it if it still wants it).
-  frames_.clear();
-  std::vector<uint8_t> fe = encode(sa, RBX1_MSG_ESTOP, nullptr, 0);
-  send_bytes(fe.data(), fe.size());
-  run_ms(5);
+  send_run(encode(sa, RBX1_MSG_ESTOP, nullptr, 0));
   ASSERT_EQ(frames_.size(), 2u);
   EXPECT_EQ(frames_[0].type, RBX1_RESPONSE(RBX1_MSG_ESTOP));
   EXPECT_EQ(frames_[1].type, RBX1_MSG_NAK);
   EXPECT_EQ(frames_[1].seq, sb);
   EXPECT_EQ(frames_[1].payload[0], RBX1_SEQ_GAP);
   // The gap filled after the ESTOP: the missing one runs (refused: the e-stop latched), the dropped one does not.
-  frames_.clear();
-  std::vector<uint8_t> fa = encode(sa, RBX1_MSG_MOVE, pa.data(), (uint8_t)pa.size());
-  send_bytes(fa.data(), fa.size());
-  run_ms(5);
+  send_run(encode(sa, RBX1_MSG_MOVE, pa.data(), (uint8_t)pa.size()));
   ASSERT_EQ(frames_.size(), 1u);
   EXPECT_EQ(frames_[0].seq, sa);
   EXPECT_EQ(frames_[0].payload[0], RBX1_FAULT_ACTIVE);
@@ -212,10 +203,7 @@ TEST_F(Fw, HeldStopRunsInItsPlaceInTheOrder) {
   uint8_t sa = take_seq(), sstop = take_seq(), sc = take_seq();
   EXPECT_EQ(exchange(encode(sstop, RBX1_MSG_STOP, nullptr, 0)).payload[0], RBX1_HELD);
   EXPECT_EQ(exchange(encode(sc, RBX1_MSG_MOVE, pc.data(), (uint8_t)pc.size())).payload[0], RBX1_HELD);
-  frames_.clear();
-  std::vector<uint8_t> fa = encode(sa, RBX1_MSG_MOVE, pa.data(), (uint8_t)pa.size());
-  send_bytes(fa.data(), fa.size());
-  run_ms(5);
+  send_run(encode(sa, RBX1_MSG_MOVE, pa.data(), (uint8_t)pa.size()));
   ASSERT_EQ(frames_.size(), 3u);
   EXPECT_EQ(frames_[0].seq, sa);
   EXPECT_EQ(frames_[0].payload[0], RBX1_OK);
@@ -255,9 +243,7 @@ TEST_F(Fw, CorruptFrameIsNakedAndNotExecuted) {
 TEST_F(Fw, GarbageIsIgnoredAndAFrameInsideItIsFound) {
   ready();
   std::vector<uint8_t> junk = {0x00, 0x13, 0xFF, 0x42, 0x99, 0x10, 0x20};
-  frames_.clear();
-  send_bytes(junk.data(), junk.size());
-  run_ms(5);
+  send_run(junk);
   EXPECT_TRUE(frames_.empty()) << "no SYNC, no header: silence";
   // A bad LEN after SYNC is NAKed (BAD_LENGTH), then the real frame behind it is executed.
   std::vector<uint8_t> p = move_payload({0, 300, 0, 0, 0, 0});
@@ -265,9 +251,7 @@ TEST_F(Fw, GarbageIsIgnoredAndAFrameInsideItIsFound) {
   std::vector<uint8_t> f = {RBX1_SYNC, 200, seq};
   std::vector<uint8_t> good = encode(seq, RBX1_MSG_MOVE, p.data(), (uint8_t)p.size());
   f.insert(f.end(), good.begin(), good.end());
-  frames_.clear();
-  send_bytes(f.data(), f.size());
-  run_ms(5);
+  send_run(f);
   ASSERT_EQ(frames_.size(), 2u);
   EXPECT_EQ(frames_[0].type, RBX1_MSG_NAK);
   EXPECT_EQ(frames_[0].payload[0], RBX1_BAD_LENGTH);

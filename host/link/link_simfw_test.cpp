@@ -137,6 +137,20 @@ std::string target_text(const std::array<int32_t, 6>& t) {
   return s + "]";
 }
 
+// Every move sent is in the firmware's --log-moves file, once, in the order sent: nothing lost, nothing run twice.
+void expect_logged_once_in_order(const std::string& log, const std::vector<std::array<int32_t, 6>>& sent) {
+  auto lines = log_lines(log);
+  ASSERT_EQ(lines.size(), sent.size());
+  for (size_t i = 0; i < sent.size(); ++i) EXPECT_NE(lines[i].find(target_text(sent[i])), std::string::npos) << i;
+}
+
+// The link's counters of a fault run, printed for the log (figures, not checks).
+void print_fault_stats(const char* run, const rbx1::link::LinkStats& st) {
+  std::printf("%s: %llu requests, %llu retransmissions, %llu NAKs, %llu rejected, %llu stale\n", run,
+              (unsigned long long)st.requests, (unsigned long long)st.retransmissions, (unsigned long long)st.naks,
+              (unsigned long long)st.rejected, (unsigned long long)st.stale);
+}
+
 std::string temp_file(const std::string& name) {
   return (std::filesystem::temp_directory_path() / (name + "-" + std::to_string(getpid()))).string();
 }
@@ -169,9 +183,7 @@ TEST(LinkSimFw, MovesExecuteExactlyOnce) {
   std::string error;
   ASSERT_EQ(link.open(sim.pty(), 115200, error), 0) << error;
   auto sent = run_moves(link, 12);
-  auto lines = log_lines(log);
-  ASSERT_EQ(lines.size(), sent.size());
-  for (size_t i = 0; i < sent.size(); ++i) EXPECT_NE(lines[i].find(target_text(sent[i])), std::string::npos) << i;
+  expect_logged_once_in_order(log, sent);
   EXPECT_EQ(link.stats().retransmissions, 0u);
   std::filesystem::remove(log);
 }
@@ -186,15 +198,11 @@ TEST(LinkSimFw, InjectedFaultsLoseAndRepeatNothing) {
   std::string error;
   ASSERT_EQ(link.open(sim.pty(), 115200, error), 0) << error;
   auto sent = run_moves(link, 30);
-  auto lines = log_lines(log);
-  ASSERT_EQ(lines.size(), sent.size());  // nothing lost, nothing executed twice
-  for (size_t i = 0; i < sent.size(); ++i) EXPECT_NE(lines[i].find(target_text(sent[i])), std::string::npos) << i;
+  expect_logged_once_in_order(log, sent);
   auto st = link.stats();
   EXPECT_GT(st.retransmissions, 0u) << "the fault injection did not hit a single exchange";
   EXPECT_EQ(st.link_down, 0u);
-  std::printf("fault run: %llu requests, %llu retransmissions, %llu NAKs, %llu rejected, %llu stale\n",
-              (unsigned long long)st.requests, (unsigned long long)st.retransmissions,
-              (unsigned long long)st.naks, (unsigned long long)st.rejected, (unsigned long long)st.stale);
+  print_fault_stats("fault run", st);
   std::filesystem::remove(log);
 }
 
@@ -249,15 +257,11 @@ TEST(LinkSimFw, WindowedStreamsUnderCorruptionLoseAndRepeatNothing) {
   } while (s.moves_done < n && steady_clock::now() - t0 < seconds(60));
   EXPECT_EQ(s.moves_done, n);
   EXPECT_EQ(s.moves_accepted, n);
-  auto lines = log_lines(log);
-  ASSERT_EQ(lines.size(), sent.size());  // nothing lost, nothing executed twice
-  for (size_t i = 0; i < sent.size(); ++i) EXPECT_NE(lines[i].find(target_text(sent[i])), std::string::npos) << i;
+  expect_logged_once_in_order(log, sent);
   auto st = link.stats();
   EXPECT_GT(st.retransmissions, 0u) << "1 % corruption did not hit a single frame";
   EXPECT_EQ(st.link_down, 0u);
-  std::printf("windowed fault run: %llu requests, %llu retransmissions, %llu NAKs, %llu rejected\n",
-              (unsigned long long)st.requests, (unsigned long long)st.retransmissions,
-              (unsigned long long)st.naks, (unsigned long long)st.rejected);
+  print_fault_stats("windowed fault run", st);
   std::filesystem::remove(log);
 }
 

@@ -44,6 +44,13 @@ rbx1_move_req some_move(int32_t base) {
   return m;
 }
 
+// n moves of targets first, first + 1, ...
+std::vector<rbx1_move_req> move_batch(int n, int32_t first) {
+  std::vector<rbx1_move_req> v;
+  for (int i = 0; i < n; ++i) v.push_back(some_move(first + i));
+  return v;
+}
+
 // The timeout is 400 ms unless a test is about the timeout itself, so a loaded machine (2 cores shared by
 // parallel builds and tests) cannot add retransmissions the test did not cause.
 struct LinkTest : ::testing::Test {
@@ -55,6 +62,16 @@ struct LinkTest : ::testing::Test {
     link.set_timing(400, 5);
     ASSERT_EQ(link.open(peer.slave_path(), 115200, error), 0) << error;
     base = link.stats();
+  }
+  // Streams n moves (move_batch) and checks that every one was answered (and OK).
+  void stream_all_ok(int n, int32_t first) {
+    std::vector<rbx1_move_resp> out;
+    std::vector<bool> answered;
+    ASSERT_EQ(link.move_stream(move_batch(n, first), out, answered), 0);
+    for (int i = 0; i < n; ++i) {
+      EXPECT_TRUE(answered[i]) << i;
+      EXPECT_EQ(out[i].status, RBX1_OK) << i;
+    }
   }
   // Counters since SetUp (the handshake excluded).
   rbx1::link::LinkStats delta() const {
@@ -213,21 +230,9 @@ TEST_F(LinkTest, CorruptResponseIsRetransmittedNotReExecuted) {
   EXPECT_EQ(s.moves_done, 1);
 }
 
-std::vector<rbx1_move_req> move_batch(int n, int32_t base) {
-  std::vector<rbx1_move_req> v;
-  for (int i = 0; i < n; ++i) v.push_back(some_move(base + i));
-  return v;
-}
-
 TEST_F(LinkTest, StreamKeepsTheWindowInFlight) {
   link.set_timing(2000, 5);  // no timeout in this test, however loaded the machine
-  std::vector<rbx1_move_resp> out;
-  std::vector<bool> answered;
-  ASSERT_EQ(link.move_stream(move_batch(40, 0), out, answered), 0);
-  for (int i = 0; i < 40; ++i) {
-    EXPECT_TRUE(answered[i]);
-    EXPECT_EQ(out[i].status, RBX1_OK);
-  }
+  stream_all_ok(40, 0);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 40);
   EXPECT_EQ(peer.cached_replies(), 0);
   EXPECT_EQ(peer.refused(), 0);
@@ -245,10 +250,7 @@ TEST_F(LinkTest, StreamKeepsTheWindowInFlight) {
 
 TEST_F(LinkTest, StreamHoldsTheFramesAfterALostRequest) {
   peer.drop_next = 1;  // the stream's first frame vanishes: the peer holds the ones after it until it comes again
-  std::vector<rbx1_move_resp> out;
-  std::vector<bool> answered;
-  ASSERT_EQ(link.move_stream(move_batch(20, 0), out, answered), 0);
-  for (int i = 0; i < 20; ++i) EXPECT_EQ(out[i].status, RBX1_OK) << i;
+  stream_all_ok(20, 0);
   std::vector<int32_t> in_order(20);
   for (int i = 0; i < 20; ++i) in_order[i] = i;
   EXPECT_EQ(peer.move_targets(), in_order);  // nothing lost, nothing twice, in order
@@ -265,10 +267,7 @@ TEST_F(LinkTest, StreamHeldAnswersLostAreSentAgain) {
   const int cached0 = peer.cached_replies();  // a HELLO sent again in SetUp (a loaded machine) is answered too
   peer.drop_next = 1;
   peer.corrupt_next = 1;  // HELD NAKs do not use it: the filler's answer is the next response
-  std::vector<rbx1_move_resp> out;
-  std::vector<bool> answered;
-  ASSERT_EQ(link.move_stream(move_batch(10, 0), out, answered), 0);
-  for (int i = 0; i < 10; ++i) EXPECT_EQ(out[i].status, RBX1_OK) << i;
+  stream_all_ok(10, 0);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 10);
   EXPECT_EQ(peer.cached_replies() - cached0, 1);
   EXPECT_LE(delta().retransmissions, 2u);  // the lost request, then its lost answer: once, whatever the reads
@@ -277,10 +276,7 @@ TEST_F(LinkTest, StreamHeldAnswersLostAreSentAgain) {
 
 TEST_F(LinkTest, StreamLostAnswersComeFromTheWindow) {
   peer.corrupt_next = 2;  // the first two answers arrive broken: those requests are sent again, answered from memory
-  std::vector<rbx1_move_resp> out;
-  std::vector<bool> answered;
-  ASSERT_EQ(link.move_stream(move_batch(12, 0), out, answered), 0);
-  for (int i = 0; i < 12; ++i) EXPECT_EQ(out[i].status, RBX1_OK) << i;
+  stream_all_ok(12, 0);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 12);
   EXPECT_GE(peer.cached_replies(), 2);
 }
@@ -290,16 +286,13 @@ TEST_F(LinkTest, StreamResendsOnlyWhatTheAnswersShowLost) {
   // a lost request one resend of it alone (its followers are held: NAK HELD), nothing more (a timeout would resend
   // all).
   link.set_timing(2000, 5);  // no timeout in this test, however loaded the machine
-  std::vector<rbx1_move_resp> out;
-  std::vector<bool> answered;
   peer.corrupt_next = 1;  // the first answer arrives broken
-  ASSERT_EQ(link.move_stream(move_batch(12, 0), out, answered), 0);
+  stream_all_ok(12, 0);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 12);
   EXPECT_EQ(delta().retransmissions, 1u);
   EXPECT_EQ(delta().timeouts, 0u);
   peer.drop_next = 1;  // the next stream's first frame vanishes: its 7 followers in the window are held
-  ASSERT_EQ(link.move_stream(move_batch(12, 100), out, answered), 0);
-  for (int i = 0; i < 12; ++i) EXPECT_EQ(out[i].status, RBX1_OK) << i;
+  stream_all_ok(12, 100);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 24);
   EXPECT_EQ(peer.held(), 7);
   EXPECT_EQ(peer.refused(), 0);

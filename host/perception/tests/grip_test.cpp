@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <optional>
 
 #include <opencv2/imgproc.hpp>
 
@@ -26,6 +27,20 @@ Detection run(const std::vector<Poly>& polys, double finger_w = 0, double finger
   std::string e;
   EXPECT_TRUE(detect(to_gray8(render(s, polys)), {}, o, nullptr, d, e)) << e;
   return d;
+}
+
+// A disc (radius 30 px at 300, 240) boxed in on all sides by 12 close neighbours, detected with 12 px fingers: the
+// disc's object, or nothing if it was not found.
+std::optional<DetectedObject> boxed_in_disc() {
+  std::vector<Poly> polys = {ellipse({300, 240}, 30, 30, 0)};
+  for (int i = 0; i < 12; ++i) {
+    double a = i * M_PI / 6;
+    polys.push_back(ellipse({300 + 44 * std::cos(a), 240 + 44 * std::sin(a)}, 9, 9, 0));
+  }
+  Detection d = run(polys, 12, 12);
+  for (const auto& o : d.objects)
+    if (cv::norm(o.geometry.centroid - cv::Point2d(300, 240)) < 1) return o;
+  return std::nullopt;
 }
 
 // The narrowest chord through pt whose outermost crossings lie on both sides of pt (0.05-degree steps).
@@ -200,16 +215,7 @@ TEST(Grip, FingersStayOffTheObjectsOwnOutline) {
 }
 
 TEST(Grip, NoClearGripIsInfeasible) {
-  // A disc boxed in on all sides by close neighbours.
-  std::vector<Poly> polys = {ellipse({300, 240}, 30, 30, 0)};
-  for (int i = 0; i < 12; ++i) {
-    double a = i * M_PI / 6;
-    polys.push_back(ellipse({300 + 44 * std::cos(a), 240 + 44 * std::sin(a)}, 9, 9, 0));
-  }
-  Detection d = run(polys, 12, 12);
-  const DetectedObject* disc = nullptr;
-  for (const auto& o : d.objects)
-    if (cv::norm(o.geometry.centroid - cv::Point2d(300, 240)) < 1) disc = &o;
+  std::optional<DetectedObject> disc = boxed_in_disc();
   ASSERT_TRUE(disc);
   EXPECT_FALSE(disc->grip.clear);
 }
@@ -306,19 +312,10 @@ TEST(GripSafety, TooNarrowAndTooWide) {
 }
 
 TEST(GripSafety, BoxedInDiscSaysFingerCollision) {
-  std::vector<Poly> polys = {ellipse({300, 240}, 30, 30, 0)};
-  for (int i = 0; i < 12; ++i) {
-    double a = i * M_PI / 6;
-    polys.push_back(ellipse({300 + 44 * std::cos(a), 240 + 44 * std::sin(a)}, 9, 9, 0));
-  }
-  Detection d = run(polys, 12, 12);
-  for (const auto& o : d.objects) {
-    if (cv::norm(o.geometry.centroid - cv::Point2d(300, 240)) > 1) continue;
-    EXPECT_FALSE(o.grip.feasible);
-    EXPECT_EQ(o.grip.reason, GripReason::FingerCollision);
-    return;
-  }
-  FAIL() << "disc not found";
+  std::optional<DetectedObject> disc = boxed_in_disc();
+  ASSERT_TRUE(disc) << "disc not found";
+  EXPECT_FALSE(disc->grip.feasible);
+  EXPECT_EQ(disc->grip.reason, GripReason::FingerCollision);
 }
 
 }  // namespace

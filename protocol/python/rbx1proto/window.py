@@ -1,6 +1,7 @@
 """window.py - the receiver's window (PROTOCOL.md "Window"), as rbx1_window.c: SEQ order, requests ahead of a gap
 held and run once it is filled (selective repeat), duplicates answered from memory over the last WINDOW requests,
 further gaps and old frames refused. The vectors check both implementations."""
+from .frame import Decoder
 from .messages import MsgType, request_len
 
 WINDOW = 8  # requests a host may keep in flight; the firmware remembers this many (HELLO reports it)
@@ -76,3 +77,27 @@ class Window:
 
     def last_seq(self):
         return self.entries[-1][0] if self.entries else 0xFF
+
+
+def replay(window, steps):
+    """Feeds each step's wire frame (hex, "wire") to window as a receiver does, in order; yields per step
+    (verdict, answer, last_seq, released, dropped): a new request is recorded with its step index as its answer, then
+    the held frames it lets through are released and recorded in order (released: the step index each was first held
+    at); a bypass (ESTOP) drops the held frames (dropped: their SEQs). The vectors' generator and tests share it."""
+    first_held = {}
+    for i, st in enumerate(steps):
+        (f,) = Decoder().feed(bytes.fromhex(st["wire"]))
+        verdict, answer, last = window.accept(f)
+        if verdict == HELD:
+            first_held.setdefault(f.seq, i)
+        released, dropped = [], []
+        if verdict == NEW:
+            window.record(f.seq, f.crc, i)
+            while (h := window.release()) is not None:
+                released.append(first_held.pop(h.seq))
+                window.record(h.seq, h.crc, released[-1])
+        if verdict == BYPASS:
+            dropped = window.drop_held()
+            for s in dropped:
+                first_held.pop(s)
+        yield verdict, answer, last, released, dropped

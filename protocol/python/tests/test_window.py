@@ -3,34 +3,19 @@ import pytest
 from conftest import load_vectors
 
 from rbx1proto import frame
-from rbx1proto.window import HELD_MAX, WINDOW, Window
+from rbx1proto.window import HELD_MAX, WINDOW, Window, replay
 
 VECTORS = load_vectors("window.json")
 
 
 @pytest.mark.parametrize("v", VECTORS, ids=[v["name"] for v in VECTORS])
 def test_window_vectors(v):
-    w, first_held = Window(), {}
-    for i, st in enumerate(v["steps"]):
-        (f,) = frame.Decoder().feed(bytes.fromhex(st["wire"]))
-        verdict, answer, last = w.accept(f)
+    for i, (st, (verdict, answer, last, released, dropped)) in enumerate(zip(v["steps"], replay(Window(), v["steps"]))):
         assert verdict == st["verdict"], f"step {i}"
         if verdict == "duplicate":
             assert answer == st["answer_of"], f"step {i}"
         if st.get("last_seq") is not None:
             assert last == st["last_seq"], f"step {i}"
-        if verdict == "held":
-            first_held.setdefault(f.seq, i)
-        released, dropped = [], []
-        if verdict == "new":
-            w.record(f.seq, f.crc, i)
-            while (h := w.release()) is not None:
-                released.append(first_held.pop(h.seq))
-                w.record(h.seq, h.crc, released[-1])
-        if verdict == "bypass":
-            dropped = w.drop_held()
-            for s in dropped:
-                first_held.pop(s)
         assert released == st.get("released", []), f"step {i}"
         assert dropped == st.get("dropped", []), f"step {i}"
 
