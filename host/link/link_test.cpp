@@ -347,7 +347,7 @@ TEST_F(LinkTest, StreamStopAndWaitWritesNoProbe) {
 }
 
 TEST_F(LinkTest, StreamLinkDownSaysWhichWereAnswered) {
-  link.set_timing(100, 2);
+  link.set_timing(250, 2);  // down after 3 silences of 250 ms: the peer's three answers come well before that
   peer.silence_after_type = RBX1_MSG_MOVE;  // three MOVEs run and are answered, then the line dies
   peer.silence_after_count = 2;
   std::vector<rbx1_move_resp> out;
@@ -363,6 +363,9 @@ TEST_F(LinkTest, StreamLinkDownSaysWhichWereAnswered) {
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 3);
   for (int i = 0; i < 10; ++i) EXPECT_EQ(answered[i], i < 3) << i;
   peer.silence_after_type = -1;
+  // The fixture's patience again for the new session: at 250 ms x 2 a peer thread held up by a loaded machine
+  // once left the HELLO unanswered (1 run in 60 at load 11).
+  link.set_timing(1000, 5);
   rbx1_status_resp s{};
   ASSERT_EQ(link.status(s), 0);  // a HELLO first (the new session), then the STATUS
   EXPECT_EQ(s.moves_done, 3);
