@@ -222,8 +222,10 @@ TEST_F(LinkTest, CorruptResponseIsRetransmittedNotReExecuted) {
   ASSERT_EQ(link.move(some_move(9), r), 0);
   EXPECT_EQ(r.queue_free, 7);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 1);
-  EXPECT_EQ(peer.cached_replies(), 1);
-  EXPECT_EQ(delta().retransmissions, 1u);
+  // One retransmission, or more when a loaded machine (TSan) holds the peer's answer past the 400 ms: every one of
+  // them is answered from the cache, none runs again.
+  EXPECT_GE(delta().retransmissions, 1u);
+  EXPECT_EQ(size_t(peer.cached_replies()), size_t(delta().retransmissions));
   EXPECT_GE(delta().rejected, 1u);
   rbx1_status_resp s{};
   ASSERT_EQ(link.status(s), 0);
@@ -442,7 +444,6 @@ TEST_F(LinkTest, EstopGoesOutWhileARequestWaits) {
     return link.move(some_move(1), r);
   });
   std::this_thread::sleep_for(milliseconds(30));  // the MOVE is on the wire, its response held
-  auto t0 = steady_clock::now();
   rbx1_estop_resp e{};
   ASSERT_EQ(link.estop(e), 0);
   EXPECT_EQ(e.status, RBX1_OK);
@@ -576,7 +577,10 @@ TEST(Link, SilentPeerFailsTheHandshake) {
   EXPECT_GE(ms_since(t0), 300);  // HELLO, quiet through the boot wait, HELLO again
   EXPECT_LT(ms_since(t0), 1500);
   EXPECT_NE(error.find("no HELLO response"), std::string::npos) << error;
-  EXPECT_GE(peer.received().size(), 4u);  // HELLO exchanges of 2 transmissions, silence between them
+  // HELLO exchanges of 2 transmissions, silence between them (the peer's thread may read the last ones later).
+  for (auto t1 = steady_clock::now(); peer.received().size() < 4u && ms_since(t1) < 10000;)
+    std::this_thread::sleep_for(milliseconds(1));
+  EXPECT_GE(peer.received().size(), 4u);
   EXPECT_EQ(peer.executed(RBX1_MSG_HELLO), 0);
 }
 
