@@ -68,7 +68,7 @@ def run(trace_path, targets, duration_ms=0, vmax=VMAX, acc=ACCEL):
     except OSError:
         pass
     with tempfile.TemporaryDirectory(prefix="rbx1-stream-") as tmp:
-        b = Board(trace_path, tmp, fast=False)
+        b = Board(trace_path, tmp, fast=False, hold_for_host=True)
         full, starved = 0, []
         try:
             b.queue = b.req(MsgType.HELLO, proto_version=timing.PROTO_VERSION)["queue_size"]
@@ -225,12 +225,7 @@ def main():
         fig = figures(trace, targets, starved)
     fig.update(moves=status["moves"], position=status["position"], avrsim_steps=sim["steps"], refused_full=full,
                starved=starved)
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(fig, f, indent=2)
-    json.dump(fig, sys.stdout, indent=1)
-    print()
-    return 0
+    return timing.report(fig, args.json)
 
 
 if __name__ == "__main__":
