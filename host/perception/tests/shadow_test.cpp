@@ -71,6 +71,16 @@ Detection run(const ColourScene& s, bool shadows) {
   return d;
 }
 
+// The 120x40 bar at 20 degrees both shadow scenes cast: its centre within centre_px of truth, its area within
+// area_frac, its orientation within deg, its opening within opening_px.
+void expect_bar(const DetectedObject& o, cv::Point2d truth, double centre_px, double area_frac, double deg,
+                double opening_px) {
+  EXPECT_LT(cv::norm(o.geometry.centroid - truth), centre_px);
+  EXPECT_NEAR(o.geometry.area_px, 120 * 40, area_frac * 120 * 40);
+  EXPECT_NEAR(o.pose.orientation_deg, 20, deg);
+  EXPECT_NEAR(o.grip.opening_px, 40, opening_px);
+}
+
 TEST(Shadow, CastShadowOnAColouredClothIsNotObject) {
   const ColourScene s = green_cloth(0.4);
   const cv::Point2d truth = poly_centroid(s.object);
@@ -82,10 +92,7 @@ TEST(Shadow, CastShadowOnAColouredClothIsNotObject) {
   EXPECT_GT(with.shadow_px, 500);
   // The pixels where the bar's blurred edge mixes with the shade fail the ratio test (the bar's hue is in
   // them) and stay in the outline: 0.76 px of centre and 3 % of area remain.
-  EXPECT_LT(cv::norm(o.geometry.centroid - truth), 1.0);
-  EXPECT_NEAR(o.geometry.area_px, 120 * 40, 0.05 * 120 * 40);
-  EXPECT_NEAR(o.pose.orientation_deg, 20, 0.5);
-  EXPECT_NEAR(o.grip.opening_px, 40, 1.5);
+  expect_bar(o, truth, 1.0, 0.05, 0.5, 1.5);
   // On grey alone (the test off) the shadow is in the outline: the centre moves 4.9 px towards it.
   ASSERT_EQ(without.objects.size(), 1u);
   EXPECT_GT(cv::norm(without.objects[0].geometry.centroid - truth), 3.0);
@@ -173,10 +180,7 @@ TEST(Shadow, StrongShadowOnAGreyTableIsNotObject) {
   ASSERT_EQ(with.objects.size(), 1u);
   const DetectedObject& o = with.objects[0];
   EXPECT_GT(with.shadow_px, 500);
-  EXPECT_LT(cv::norm(o.geometry.centroid - truth), 0.3);
-  EXPECT_NEAR(o.geometry.area_px, 120 * 40, 0.02 * 120 * 40);
-  EXPECT_NEAR(o.pose.orientation_deg, 20, 0.3);
-  EXPECT_NEAR(o.grip.opening_px, 40, 1.0);
+  expect_bar(o, truth, 0.3, 0.02, 0.3, 1.0);
   // Without the test the shade is in the outline.
   ASSERT_EQ(without.objects.size(), 1u);
   EXPECT_GT(cv::norm(without.objects[0].geometry.centroid - truth), 2.0);
