@@ -3,7 +3,8 @@
 default) to rbx1-avrsim --trace (real time) as fast as the queue takes them, then measures from the pin-level trace: exact counts,
 the longest gap between STEP pulses mid-stream against the slowest junction speed of the rule (firmware/README.md,
 Look-ahead), every joint's speed and acceleration from the step timestamps, STEP pulse width and DIR setup time,
-the profile tick's cycles, and the interrupts-off windows and compare writes (tools/avrsim/timing.py's analysis).
+the profile tick's cycles, each answer's latency (last request byte in to first answer byte out), and the
+interrupts-off windows and compare writes (tools/avrsim/timing.py's analysis).
 Used by tools/avrsim/test/test_lookahead.py (thresholds) and tools/bench/motion (figures).
 Usage: stream.py [--moves N] [--json OUT]"""
 import argparse
@@ -102,6 +103,28 @@ def run(trace_path, targets, duration_ms=0, vmax=VMAX, acc=ACCEL):
 
 
 PROFILE_VECTOR = 32  # TIMER3_COMPA: the 1 kHz profile tick
+RX_VECTOR, UDRE_VECTOR = 25, 26  # USART0_RX and USART0_UDRE
+
+
+def answer_latency(trace_path):
+    """Cycles from each request's last byte in (its last RX interrupt before an answer) to the answer's first byte
+    out (the next UDRE interrupt): the host streams one request at a time, so each RX burst is one request. All
+    answers count, QUEUE_FULL refusals included. Returns (median, 90th percentile, maximum, count)."""
+    lat, last_rx = [], None
+    with open(trace_path) as f:
+        for line in f:
+            if line[0] != "E":
+                continue
+            c, v = map(int, line.split()[1:3])
+            if v == RX_VECTOR:
+                last_rx = c
+            elif v == UDRE_VECTOR and last_rx is not None:
+                lat.append(c - last_rx)
+                last_rx = None
+    lat.sort()
+    if not lat:
+        return None, None, None, 0
+    return lat[len(lat) // 2], lat[min(len(lat) - 1, len(lat) * 9 // 10)], lat[-1], len(lat)
 
 
 def analyse(trace_path, ticks=None):
@@ -201,6 +224,7 @@ def figures(trace_path, targets, starved=(), vmax=VMAX, acc=ACCEL):
     speed, accel = limits(steps, all_t[0], all_t[-1])
     v0 = math.sqrt(min(acc[j] for j in range(6) if steps[j]) / 2)
     t = timing.analyse(trace_path)  # interrupts-off windows and compare writes while the look-ahead works
+    lat = answer_latency(trace_path)
     return {"net_steps": [sum(d for _, d in s) for s in steps], "pulses": sum(len(s) for s in steps),
             "seconds": (all_t[-1] - all_t[0]) / HZ, "junction_speed_min": vj, "stop_rate": v0,
             "targets_reached_in_order": len(arr), "stops_left_out": len(skip),
@@ -210,7 +234,9 @@ def figures(trace_path, targets, starved=(), vmax=VMAX, acc=ACCEL):
             "profile_tick_mean_cycles": sum(ticks) / len(ticks) if ticks else None,
             "irq_off_window_max_cycles": t["irq_off_window_max_cycles"],
             "irq_off_windows_max_cycles": t["irq_off_windows_max_cycles"],
-            "step_isr_wait_max_cycles": t["step_isr_wait_max_cycles"], "ocr1a_late_writes": t["ocr1a_late_writes"]}
+            "step_isr_wait_max_cycles": t["step_isr_wait_max_cycles"], "ocr1a_late_writes": t["ocr1a_late_writes"],
+            "answer_latency_median_cycles": lat[0], "answer_latency_p90_cycles": lat[1],
+            "answer_latency_max_cycles": lat[2], "answers_timed": lat[3]}
 
 
 def main():

@@ -66,7 +66,7 @@ static uint8_t cmd_move(const rbx1_frame *f, uint8_t *out) {
       queue_plan_start(start, pos);
       r.status = plan_move(b, start, req.target, req.duration_ms, queue_last());
       if (r.status == RBX1_OK && !queue_commit()) r.status = RBX1_FAULT_ACTIVE;  // flushed meanwhile
-      if (r.status == RBX1_OK) planner_recalculate();
+      if (r.status == RBX1_OK) planner_mark_stale();  // recalculated after the answer is out
     }
   }
   r.queue_free = queue_free();

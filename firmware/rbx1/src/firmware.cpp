@@ -3,6 +3,7 @@
 
 #include "hal.h"
 #include "homing.h"
+#include "planner.h"
 #include "protocol.h"
 #include "queue.h"
 #include "rbx1_proto.h"
@@ -29,6 +30,7 @@ void fw_setup(void) {
 void fw_loop(void) {
   hal_watchdog_kick();
   protocol_poll();
+  planner_poll();  // after the answers: a MOVE's answer never waits for the look-ahead
   safety_poll();
   homing_poll();
 }

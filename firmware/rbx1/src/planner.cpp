@@ -298,3 +298,13 @@ void planner_recalculate(void) {
   }
   for (uint8_t k = 0; k < c; k++) set_exit(q[k], exit[k]);
 }
+
+static uint8_t stale;  // main loop only
+
+void planner_mark_stale(void) { stale = 1; }
+
+void planner_poll(void) {
+  if (!stale) return;
+  stale = 0;
+  planner_recalculate();
+}

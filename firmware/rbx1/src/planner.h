@@ -58,5 +58,10 @@ void plan_gripper(plan_block *b, uint16_t pulse_us, uint16_t dwell_ms);
 // The look-ahead passes over the queue after a commit: backward from the last entry (which ends at its stop rate)
 // and forward from the oldest (which may be running: its exit is only ever raised, see stepper.cpp).
 void planner_recalculate(void);
+// A commit marks the look-ahead stale; the main loop recalculates after the link has answered what it read, once
+// for all the moves committed meanwhile (a filled gap can release seven). Until then a new entry keeps the exits
+// it was committed with (stops at both ends), which is always safe.
+void planner_mark_stale(void);
+void planner_poll(void);
 
 #endif
