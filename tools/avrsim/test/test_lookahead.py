@@ -1,6 +1,7 @@
 """test_lookahead.py - the look-ahead on the real firmware ELF under rbx1-avrsim (tools/avrsim/stream.py): 500 short
 moves along a circle run without stopping between them, end exactly at the last target, and keep every joint within
-its MAX_SPEED and ACCEL as measured from the pin-level trace. A move accepted with at most three in the queue (the
+its MAX_SPEED and ACCEL as measured from the pin-level trace, and answer each MOVE without waiting for the
+look-ahead's passes. A move accepted with at most three in the queue (the
 host, held up by a loaded machine, fell behind the simulated arm) means the look-ahead had to slow down or stop
 there, as it must: those junctions are left out of the no-stop check, at most MAX_STARVED of them (beyond that the
 machine is too loaded for the check: re-run it alone). Env: AVRSIM, RBX1_FIRMWARE_ELF, RBX1_SOURCE_DIR."""
@@ -65,3 +66,11 @@ def test_pulses_and_dir_setup(result):
     _, _, _, _, fig = result
     assert fig["min_pulse_width_cycles"] >= 32  # pins.h: at least 2 us, also when a move starts with a DIR change
     assert fig["min_dir_setup_cycles"] is not None and fig["min_dir_setup_cycles"] >= 16  # DIR 1 us before STEP
+
+
+def test_answers_do_not_wait_for_the_look_ahead(result):
+    _, _, _, _, fig = result
+    # The passes run after the answer is out (planner_poll): what is left of the 90th percentile is a request that
+    # arrives while the previous one's passes run (48,300 cycles measured; 59,000 when the passes ran before it).
+    assert fig["answers_timed"] >= 500
+    assert fig["answer_latency_p90_cycles"] <= 53000, fig
