@@ -162,7 +162,9 @@ class Daemon:
         self.proc = subprocess.Popen([need(BIN / "rbx1d"), "--config", str(self.config), "--port", str(port),
                                       *extra_args], stdout=self.log, stderr=subprocess.STDOUT)
         try:
-            deadline = time.monotonic() + 10
+            # The socket comes before anything slow (server.open() precedes the link), but a start on a machine
+            # at load 18 once took over 10 s to get there: a generous deadline, the condition decides.
+            deadline = time.monotonic() + 30
             while not os.path.exists(self.socket):
                 if self.proc.poll() is not None:
                     raise AssertionError(f"rbx1d exited {self.proc.returncode}:\n{self.log_path.read_text()}")
