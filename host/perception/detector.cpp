@@ -24,14 +24,9 @@ bool detect(const cv::Mat& gray, const cv::Mat& background_gray, const DetectorO
       }
     } else if (opt.shadows && bg.size() == gray.size()) {
       // A grey table: the shade found by its soft edges and its caster; the background in that shade.
-      cv::Mat shade, factor;
-      out.shadow_px = grey_shade_mask(gray, bg, opt.grey_shade, shade, factor);
-      if (out.shadow_px > 0) {
-        cv::Mat shaded;
-        bg.convertTo(shaded, CV_32F);
-        shaded = shaded.mul(factor);
-        shaded.convertTo(bg, CV_8U);
-      }
+      cv::Mat shade, shaded;
+      out.shadow_px = grey_shade_mask(gray, bg, opt.grey_shade, shade, shaded);
+      if (out.shadow_px > 0) bg = shaded;
     }
     if (!contrast_from_background(gray, bg, opt.objects, opt.isolation.min_contrast, con, error)) return false;
   } else {

@@ -158,4 +158,33 @@ cv::Moments moments_second_order(const cv::Mat& s) {
   return m;
 }
 
+RBX1_AVX2_CLONES
+bool opening5_any(const cv::Mat& m) {
+  CV_Assert(m.type() == CV_8U);
+  const int W = m.cols, H = m.rows;
+  // The opening has a pixel where its erosion has one: the minimum over 5 pixels of each row (padded with 2
+  // set pixels on both sides), then over 5 such rows (rows outside the image set), is not 0 somewhere.
+  thread_local std::vector<uchar> pad, rows;
+  pad.assign(size_t(W) + 4, 255);
+  rows.assign(5 * size_t(W), 255);  // the last 5 rows' minima, row y at y % 5
+  for (int y = 0; y < H + 2; ++y) {
+    uchar* h = rows.data() + size_t(y % 5) * size_t(W);
+    if (y < H) {
+      std::memcpy(pad.data() + 2, m.ptr<uchar>(y), size_t(W));
+      const uchar* p = pad.data();
+      for (int x = 0; x < W; ++x)
+        h[x] = std::min(std::min(std::min(p[x], p[x + 1]), std::min(p[x + 2], p[x + 3])), p[x + 4]);
+    } else {
+      std::memset(h, 255, size_t(W));
+    }
+    if (y < 2) continue;  // the erosion's row y - 2 needs rows y - 4 .. y
+    const uchar *r0 = rows.data(), *r1 = r0 + W, *r2 = r1 + W, *r3 = r2 + W, *r4 = r3 + W;
+    uchar any = 0;
+    for (int x = 0; x < W; ++x)
+      any |= std::min(std::min(std::min(r0[x], r1[x]), std::min(r2[x], r3[x])), r4[x]);
+    if (any) return true;
+  }
+  return false;
+}
+
 }  // namespace rbx1::vision

@@ -15,6 +15,10 @@ void dilate_square(const cv::Mat& src, cv::Mat& dst, int r);
 // countNonZero(gx.mul(gx) + gy.mul(gy) > t2) counts them).
 int sobel_gradient(const cv::Mat& s, cv::Mat& gx, cv::Mat& gy, float t2);
 
+// Whether cv::morphologyEx(m, MORPH_OPEN, cv::Mat::ones(5, 5, CV_8U)) (default border) has any set pixel, i.e.
+// whether a 5x5 square of set pixels fits in m, pixels outside m counting as set. CV_8U; one pass, no image.
+bool opening5_any(const cv::Mat& m);
+
 // cv::moments(s, false) of a CV_32F image, up to the second order: m00, m10, m01, m20, m11, m02 and the central
 // mu20, mu11, mu02 (the third-order fields stay 0). (cv::moments reads a 2-column matrix as a contour's points;
 // this always reads an image.)

@@ -2,9 +2,14 @@
 #include "shadow.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
 
 #include <opencv2/imgproc.hpp>
+
+#include "components.hpp"
+#include "pixels.hpp"
 
 namespace rbx1::vision {
 namespace {
@@ -34,55 +39,58 @@ bool coloured_background(const cv::Mat& background_bgr, const ShadowOptions& opt
 }
 
 int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreyShadeOptions& opt, cv::Mat& mask,
-                    cv::Mat& factor) {
-  mask = cv::Mat::zeros(gray.size(), CV_8U);
-  factor.release();
+                    cv::Mat& shaded) {
+  mask.release();
+  shaded.release();
   if (gray.type() != CV_8U || background.type() != CV_8U || gray.size() != background.size()) return 0;
-  // Candidates: darker than the table by a ratio in the shade's range (1); darker still (2): an object.
-  cv::Mat cls(gray.size(), CV_8U);
-  int lo[256], hi[256];  // per background level: the grey range of a candidate
-  for (int v = 0; v < 256; ++v) {
-    lo[v] = int(std::ceil(opt.min_ratio * v));
-    hi[v] = int(std::floor(std::min(opt.max_ratio * v, v - opt.min_depth)));
-  }
-  bool any = false;
-  for (int y = 0; y < gray.rows; ++y) {
-    const uchar* g = gray.ptr<uchar>(y);
-    const uchar* b = background.ptr<uchar>(y);
-    uchar* c = cls.ptr<uchar>(y);
-    for (int x = 0; x < gray.cols; ++x) {
-      const int v = g[x];
-      c[x] = uchar(v < lo[b[x]] ? 2 : v <= hi[b[x]] ? 1 : 0);
-      any |= c[x] != 0;
+  // Candidates: darker than the table by at least min_depth levels, opened 3x3, 8-connected: the isolation's
+  // streamed pass (components.cpp), its labels in a buffer kept zero between frames (each region's box is
+  // cleared after use).
+  const int depth = int(std::ceil(opt.min_depth));
+  thread_local cv::Mat lab;
+  thread_local std::vector<Component> regions;
+  if (lab.size() != gray.size()) lab = cv::Mat::zeros(gray.size(), CV_32S);
+  label_components(gray, background, -1, depth - 1, depth - 1, 1, lab, regions);
+  struct Clear {  // (on every way out)
+    ~Clear() {
+      for (const Component& c : regions) lab(c.box).setTo(0);
     }
-  }
-  if (!any) return 0;
-  // Regions darker than the table; each split in two by its ratio (Otsu): the lighter part is shade when it is
-  // no larger than the darker part, lies against it, and borders the lit table along part of its outline.
-  cv::Mat dark = cls != 0, lab, stats, cents;
-  cv::morphologyEx(dark, dark, cv::MORPH_OPEN, cv::Mat::ones(3, 3, CV_8U));
-  const int n = cv::connectedComponentsWithStats(dark, lab, stats, cents, 8, CV_32S);
+  } clear;
+  // Each region split in two by its ratio (Otsu): the lighter part is shade when it is no larger than the
+  // darker part, lies against it, and borders the lit table along part of its outline. All work is on the
+  // region's box grown by 3 px.
   const cv::Rect frame(0, 0, gray.cols, gray.rows);
   int total = 0;
-  cv::Mat q(gray.size(), CV_8U);  // the ratio gray / background on 0-255, over the regions only
-  for (int i = 1; i < n; ++i) {
-    if (stats.at<int>(i, cv::CC_STAT_AREA) < 2 * opt.min_area_px) continue;
-    const cv::Rect box(stats.at<int>(i, cv::CC_STAT_LEFT), stats.at<int>(i, cv::CC_STAT_TOP),
-                       stats.at<int>(i, cv::CC_STAT_WIDTH), stats.at<int>(i, cv::CC_STAT_HEIGHT));
+  // The ratio gray / background on 0-255, min(255, 255 g / max(b, 1)), the division as a multiplication by
+  // ceil(2^32 / max(b, 1)): exact for numerators under 2^16 (the error, under n (b - 1) / 2^32, stays under 1 / b).
+  static const auto reciprocal = [] {
+    std::array<uint64_t, 256> t{};
+    for (uint64_t b = 0; b < 256; ++b) {
+      const uint64_t d = std::max<uint64_t>(b, 1);
+      t[b] = ((uint64_t(1) << 32) + d - 1) / d;
+    }
+    return t;
+  }();
+  auto ratio = [&](int g, int b) { return int(std::min<uint64_t>(255, (uint64_t(255 * g) * reciprocal[b]) >> 32)); };
+  for (size_t k = 0; k < regions.size(); ++k) {
+    const int i = int(k) + 1;
+    if (regions[k].area < 2 * opt.min_area_px) continue;
+    const cv::Rect box = regions[k].box;
     const cv::Rect r = cv::Rect(box.x - 3, box.y - 3, box.width + 6, box.height + 6) & frame;
     cv::Mat own = lab(r) == i;
-    int hist[256] = {0};
+    // The ratio on the region's pixels (0 elsewhere) and its histogram over them (by column mod 4, so that
+    // equal neighbours do not wait on each other's count; bin 0 from the region's area).
+    cv::Mat q(r.size(), CV_8U);
+    int hist4[4][256] = {}, hist[256];
     for (int y = 0; y < r.height; ++y) {
       const uchar* o = own.ptr<uchar>(y);
       const uchar* g = gray.ptr<uchar>(r.y + y) + r.x;
       const uchar* b = background.ptr<uchar>(r.y + y) + r.x;
-      uchar* qq = q.ptr<uchar>(r.y + y) + r.x;
-      for (int x = 0; x < r.width; ++x) {
-        if (!o[x]) continue;
-        qq[x] = uchar(std::min(255, 255 * g[x] / std::max<int>(b[x], 1)));
-        hist[qq[x]]++;
-      }
+      uchar* qq = q.ptr<uchar>(y);
+      for (int x = 0, w = r.width; x < w; ++x) hist4[x & 3][qq[x] = uchar(o[x] ? ratio(g[x], b[x]) : 0)]++;
     }
+    hist[0] = regions[k].area;
+    for (int v = 1; v < 256; ++v) hist[0] -= hist[v] = hist4[0][v] + hist4[1][v] + hist4[2][v] + hist4[3][v];
     // Otsu's threshold over the region's ratios.
     double sum = 0, cnt = 0;
     for (int v = 0; v < 256; ++v) sum += double(v) * hist[v], cnt += hist[v];
@@ -121,19 +129,17 @@ int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreySh
     for (int v = 0; v < t; ++v) sa += double(v) * hist[v], ca += hist[v];
     const double ma = sa / std::max(ca, 1.0), mb = (sum - sa) / std::max(cnt - ca, 1.0);
     if (ca == 0 || mb - ma < 255 * opt.caster_margin || mb < 255 * opt.min_ratio) continue;
-    cv::Mat part_a(r.size(), CV_8U), part_b(r.size(), CV_8U);
+    // The darker part's blurred rim (up to 4 px wide) lies in the lighter range too: an opening leaves only
+    // pieces of real extent (each then regains its own corners). Most regions are an object with its rim
+    // alone: nothing survives the opening.
+    cv::Mat part_a(r.size(), CV_8U), part_b = own & (q >= t);
+    if (!opening5_any(part_b)) continue;
     for (int y = 0; y < r.height; ++y) {
       const uchar* o = own.ptr<uchar>(y);
-      const uchar* qq = q.ptr<uchar>(r.y + y) + r.x;
+      const uchar* qq = q.ptr<uchar>(y);
       uchar* pa = part_a.ptr<uchar>(y);
-      uchar* pb = part_b.ptr<uchar>(y);
-      for (int x = 0; x < r.width; ++x) {
-        pa[x] = uchar(o[x] && qq[x] < t ? 255 : 0);
-        pb[x] = uchar(o[x] && qq[x] >= t ? 255 : 0);
-      }
+      for (int x = 0; x < r.width; ++x) pa[x] = uchar(o[x] && qq[x] < t ? 255 : 0);
     }
-    // The darker part's blurred rim (up to 4 px wide) lies in the lighter range too: an opening leaves only
-    // pieces of real extent (each then regains its own corners).
     cv::Mat near_a, plab, pstats, pcents, seeds;
     cv::morphologyEx(part_b, seeds, cv::MORPH_OPEN, cv::Mat::ones(5, 5, CV_8U));
     cv::dilate(part_a, near_a, cv::Mat::ones(5, 5, CV_8U));
@@ -154,7 +160,7 @@ int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreySh
             if (nx[k] < 0 || ny[k] < 0 || nx[k] >= r.width || ny[k] >= r.height) continue;
             if (plab.at<int>(ny[k], nx[k]) == j) continue;
             ++edge;
-            soft += cls.at<uchar>(r.y + ny[k], r.x + nx[k]) == 0;
+            soft += background.at<uchar>(r.y + ny[k], r.x + nx[k]) - gray.at<uchar>(r.y + ny[k], r.x + nx[k]) < depth;
           }
         }
       }
@@ -169,7 +175,7 @@ int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreySh
       }
       for (int y = 0; y < r.height; ++y) {
         const uchar* pm = piece.ptr<uchar>(y);
-        const uchar* qq = q.ptr<uchar>(r.y + y) + r.x;
+        const uchar* qq = q.ptr<uchar>(y);
         for (int x = 0; x < r.width; ++x)
           if (pm[x]) ph[qq[x]]++, ++pn;
       }
@@ -187,16 +193,18 @@ int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreySh
       long band = 0;
       for (int v = band_lo; v <= band_hi; ++v) band += ph[v];
       if (double(band) < opt.min_penumbra_px * double(soft)) continue;
-      piece &= q(r) >= kp - 6;
+      piece &= q >= kp - 6;
+      if (mask.empty()) mask = cv::Mat::zeros(gray.size(), CV_8U);
       mask(r).setTo(255, piece);
       total += cv::countNonZero(piece);
       found = true;
     }
     if (!found) continue;
-    // The factor: gray / background on the shade; beside it (the darker part's edge over shaded table, within
-    // 2 px) the background that gives such a pixel its true coverage of the darker part (the part's median
-    // ratio over the shade's ratio nearby), so the outline neither bulges into the shade nor bites into itself.
-    if (factor.empty()) factor = cv::Mat(gray.size(), CV_32F, cv::Scalar(1));
+    // The background in the shade: background * (gray / background) on the shade; beside it (the darker part's
+    // edge over shaded table, within 2 px) the background that gives such a pixel its true coverage of the
+    // darker part (the part's median ratio over the shade's ratio nearby), so the outline neither bulges into
+    // the shade nor bites into itself.
+    if (shaded.empty()) shaded = background.clone();
     int acc = 0, med = 0;
     for (int v = 0; v < t; ++v)
       if ((acc += hist[v]) * 2 >= int(ca)) {
@@ -204,16 +212,17 @@ int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreySh
         break;
       }
     const float o = float(med) / 255.f;
-    cv::Mat sh = mask(r), ratio(r.size(), CV_32F, cv::Scalar(0)), weight, spread;
+    cv::Mat sh = mask(r), shade_ratio(r.size(), CV_32F, cv::Scalar(0)), weight, spread;
     for (int y = 0; y < r.height; ++y) {
       const uchar* m = sh.ptr<uchar>(y);
-      const uchar* qq = q.ptr<uchar>(r.y + y) + r.x;
-      float* rr = ratio.ptr<float>(y);
+      const uchar* g = gray.ptr<uchar>(r.y + y) + r.x;
+      const uchar* b = background.ptr<uchar>(r.y + y) + r.x;
+      float* rr = shade_ratio.ptr<float>(y);
       for (int x = 0; x < r.width; ++x)
-        if (m[x]) rr[x] = float(qq[x]) / 255.f;
+        if (m[x]) rr[x] = float(ratio(g[x], b[x])) / 255.f;  // (the shade of earlier regions too)
     }
     sh.convertTo(weight, CV_32F, 1.0 / 255);
-    cv::boxFilter(ratio, spread, CV_32F, cv::Size(5, 5), cv::Point(-1, -1), false);
+    cv::boxFilter(shade_ratio, spread, CV_32F, cv::Size(5, 5), cv::Point(-1, -1), false);
     cv::boxFilter(weight, weight, CV_32F, cv::Size(5, 5), cv::Point(-1, -1), false);
     for (int y = 0; y < r.height; ++y) {
       const uchar* m = sh.ptr<uchar>(y);
@@ -222,16 +231,20 @@ int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreySh
       const uchar* b = background.ptr<uchar>(r.y + y) + r.x;
       const float* sp = spread.ptr<float>(y);
       const float* w = weight.ptr<float>(y);
-      float* f = factor.ptr<float>(r.y + y) + r.x;
+      uchar* s = shaded.ptr<uchar>(r.y + y) + r.x;
       for (int x = 0; x < r.width; ++x) {
         const float v = float(g[x]) / float(std::max<int>(b[x], 1));
+        float f;
         if (m[x]) {
-          f[x] = v;
+          f = v;
         } else if (ow[x] && w[x] > 0) {
           const float kk = sp[x] / w[x];
-          if (v >= kk || kk <= o) f[x] = std::min(1.f, v);
-          else f[x] = std::min(1.f, v + std::clamp((kk - v) / (kk - o), 0.f, 1.f) * (1.f - o));
+          if (v >= kk || kk <= o) f = std::min(1.f, v);
+          else f = std::min(1.f, v + std::clamp((kk - v) / (kk - o), 0.f, 1.f) * (1.f - o));
+        } else {
+          continue;
         }
+        s[x] = cv::saturate_cast<uchar>(float(b[x]) * f);
       }
     }
   }

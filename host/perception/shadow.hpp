@@ -21,9 +21,8 @@ struct ShadowOptions {
 // edges (its penumbra) on its table side and is attached to a darker object that casts it, across that
 // object's sharp edge, while an object is bounded by sharp edges all round.
 struct GreyShadeOptions {
-  double min_ratio = 0.35;     // shade darkens the table to between this fraction of its light...
-  double max_ratio = 0.985;    // ...and this (with at least min_depth levels): its penumbra included
-  double min_depth = 4;
+  double min_ratio = 0.35;     // shade darkens the table to at least this fraction of its light...
+  double min_depth = 4;        // ...and by at least this many levels: its penumbra included
   double sharp_slope = 0.32;   // an edge is sharp where the grey slope (levels/px) exceeds this fraction of
                                // the grey range over 7x7 around it: a blurred step of sigma <= 1.1 px peaks
                                // above 0.36, a penumbra of sigma >= 1.5 px below 0.27
@@ -35,11 +34,12 @@ struct GreyShadeOptions {
 };
 
 // The table in shade on a grey table: gray, background: CV_8U, same size (the background already in the
-// scene's light). Returns the number of shade pixels and `mask` (CV_8U, 255 = shade) and `factor` (CV_32F,
-// gray / background on shade pixels and carried 2 px beyond them, 1 elsewhere): the background in the scene's
-// shade is background * factor.
+// scene's light). Returns the number of shade pixels; when there are any, `mask` (CV_8U, 255 = shade) and
+// `shaded`, the background in the scene's shade (CV_8U: on shade pixels the frame's grey, within 2 px of them
+// the caster's coverage, the background elsewhere); both empty when there are none. The work is done only in
+// the boxes of the regions darker than the table.
 int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreyShadeOptions& opt, cv::Mat& mask,
-                    cv::Mat& factor);
+                    cv::Mat& shaded);
 
 // true when the background's median chroma reaches opt.min_chroma (the colour shadow test applies).
 bool coloured_background(const cv::Mat& background_bgr, const ShadowOptions& opt);

@@ -1,5 +1,5 @@
 // pixels_test.cpp - the fused ROI loops against the OpenCV calls they replace, bit for bit: square dilation,
-// the Sobel gradient and its edge count, the second-order moments.
+// whether a 5x5 opening leaves anything, the Sobel gradient and its edge count, the second-order moments.
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -61,6 +61,36 @@ TEST(Pixels, DilateSquareEqualsOpenCVDilate) {
   dilate_square(big(cv::Rect(25, 15, 20, 10)), got, 2);
   EXPECT_TRUE(same_bits(want, got));
   EXPECT_EQ(cv::countNonZero(got), 25);
+}
+
+TEST(Pixels, Opening5AnyEqualsOpenCVOpening) {
+  // Masks of random blobs, dense and sparse, from 1x1 up: the answer both ways, on borders too.
+  std::mt19937 rng(9);
+  int fits = 0;
+  for (int i = 0; i < 400; ++i) {
+    const int w = 1 + int(rng() % 40), h = 1 + int(rng() % 40);
+    cv::Mat m(h, w, CV_8U);
+    cv::randu(m, 0, 256);
+    cv::threshold(m, m, 20 + int(rng() % 60), 255, cv::THRESH_BINARY);
+    if (i % 2) cv::dilate(m, m, cv::Mat(), cv::Point(-1, -1), 1 + int(rng() % 2));
+    else cv::erode(m, m, cv::Mat(), cv::Point(-1, -1), int(rng() % 2));
+    cv::Mat opened;
+    cv::morphologyEx(m, opened, cv::MORPH_OPEN, cv::Mat::ones(5, 5, CV_8U));
+    const bool want = cv::countNonZero(opened) > 0;
+    ASSERT_EQ(opening5_any(m), want) << w << "x" << h << " case " << i;
+    fits += want;
+  }
+  EXPECT_GT(fits, 60);
+  EXPECT_LT(fits, 340);
+  // A 5x5 square only at a corner, a 4x5 one, an all-clear and an all-set ROI of a larger image.
+  cv::Mat big(30, 30, CV_8U, cv::Scalar(0));
+  big(cv::Rect(0, 0, 5, 5)).setTo(255);
+  EXPECT_TRUE(opening5_any(big));
+  big(cv::Rect(0, 0, 5, 5)).setTo(0);
+  big(cv::Rect(10, 10, 4, 5)).setTo(255);
+  EXPECT_FALSE(opening5_any(big));
+  EXPECT_TRUE(opening5_any(big(cv::Rect(10, 10, 4, 5))));  // outside counts as set
+  EXPECT_FALSE(opening5_any(big(cv::Rect(20, 20, 8, 8))));
 }
 
 TEST(Pixels, SobelGradientEqualsOpenCVSobel) {

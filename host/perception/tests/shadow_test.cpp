@@ -211,13 +211,14 @@ TEST(Shadow, GreyObjectWithoutShadowIsNotShade) {
   // A mid-grey disc at the ratio shade has (0.6 of the table) with no shadow: bounded by the table all round,
   // nothing darker against it, so it is an object, whole.
   const GreyScene s = grey_table({ellipse({320, 240}, 50, 30, 10)}, {108}, 180, 0.0);
-  cv::Mat mask, factor;
-  EXPECT_EQ(grey_shade_mask(s.frame, s.background, GreyShadeOptions{}, mask, factor), 0);
+  cv::Mat mask, shaded;
+  EXPECT_EQ(grey_shade_mask(s.frame, s.background, GreyShadeOptions{}, mask, shaded), 0);
+  EXPECT_TRUE(mask.empty() && shaded.empty());
   Detection d = run_grey(s, true);
   ASSERT_EQ(d.objects.size(), 1u);
   EXPECT_NEAR(d.objects[0].geometry.area_px, M_PI * 50 * 30, 0.02 * M_PI * 50 * 30);
   // Wrong types: no mask.
-  EXPECT_EQ(grey_shade_mask(s.frame, cv::Mat(), GreyShadeOptions{}, mask, factor), 0);
+  EXPECT_EQ(grey_shade_mask(s.frame, cv::Mat(), GreyShadeOptions{}, mask, shaded), 0);
 }
 
 }  // namespace
