@@ -290,6 +290,7 @@ void contrast_auto(const cv::Mat& gray, Polarity objects, double min_contrast, C
   cv::resize(s8, b8, gray.size(), 0, 0, cv::INTER_LINEAR);
   out.gray = gray;
   out.background = b8;
+  out.modelled = true;
   double median = 0;
   // With the global model the objects may cover most of the frame: the noise is measured on the table only.
   robust_stats(gray, b8, 4, median, out.noise_sigma, out.global_model ? std::max(8, int(sep / 2)) : 0);

@@ -15,6 +15,7 @@ struct Contrast {
   int sign = -1;             // -1: objects darker than the background, +1: lighter, 0: both (auto)
   double noise_sigma = 1;    // robust spread of the difference over the table (noise plus pattern residue)
   bool global_model = false; // automatic background: one smooth surface fitted to the table class (bimodal)
+  bool modelled = false;     // the background was modelled from the frame (no captured empty table)
 };
 
 // The background the paper assumes, captured for real: the per-pixel mean of several frames of the empty

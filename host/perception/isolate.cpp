@@ -13,12 +13,130 @@
 namespace rbx1::vision {
 namespace {
 
+// Without a captured background, an object's own soft shadow beside one side has no model of the shaded table:
+// it is a shelf of contrast between the object's half level and its own level, attached to the object and
+// reaching out to the table (stuff.jpg's black cap: 75-90 levels of shade beside 110 of cap, on one side).
+// Among the component's pixels above the half level Otsu's cut parts a lighter class from the object's; when
+// the classes lie far apart (4 noise sigma and a fifth of the object's class) and the lighter one is no larger,
+// the lighter class opened 5x5 (a blurred rim, a specular streak or texture are thinner) and regrown 2 px within
+// itself gives pieces; a piece no larger than the object's class whose 1 px ring is at least 10 % the object's
+// class (against its caster) and at least 10 % outside the half level (reaching the table), at least a tenth of
+// the object's class, and soft (the component's band below the half level beyond it at least twice as deep as
+// beyond the object's own edge away from it: a penumbra, not the camera's blur; a sweet's lit half has the
+// sweet's sharp edge) is shade. Within
+// 2 px of the shade the contrast is taken against the shade instead of the table, c' = (c - s) L / (L - s) (s:
+// the shade's median, L: the object class's), so the shade has none and the object's edge over it lies half-way
+// between shade and object, as its edge over the table does. Returns whether shade was found (cbuf changed).
+bool drop_shade_shelf(uchar* cbuf, const uchar* obuf, int W, int H, const int* hist, int half_c, double sigma) {
+  double n = 0, sum = 0;
+  for (int i = half_c + 1; i < 256; ++i) n += hist[i], sum += double(i) * hist[i];
+  if (n < 50) return false;
+  double best = -1, w0 = 0, s0 = 0;
+  int cut = -1;
+  for (int k = half_c + 1; k < 255; ++k) {
+    w0 += hist[k], s0 += double(k) * hist[k];
+    const double w1 = n - w0;
+    if (w0 < 1 || w1 < 1) continue;
+    const double m0 = s0 / w0, m1 = (sum - s0) / w1, between = w0 * w1 * (m1 - m0) * (m1 - m0);
+    if (between > best) best = between, cut = k;
+  }
+  if (cut < 0) return false;
+  double n_lo = 0, s_lo = 0;
+  for (int i = half_c + 1; i <= cut; ++i) n_lo += hist[i], s_lo += double(i) * hist[i];
+  const double n_hi = n - n_lo, m_lo = s_lo / n_lo, m_hi = (sum - s_lo) / n_hi;
+  if (m_hi - m_lo < std::max(4 * sigma, 0.2 * m_hi) || n_lo > n_hi || n_lo < 0.1 * n_hi) return false;
+  // The lighter class, opened 5x5 (an erosion as the dilation of the complement: outside the ROI counts as set,
+  // as cv::erode's default border has it). Most objects stop here: their blurred rim is all the class has.
+  cv::Mat cand(H, W, CV_8U), opened, grown;
+  const uchar lo = uchar(half_c), hi = uchar(cut);
+  for (int y = 0; y < H; ++y) {
+    const uchar* cr = cbuf + size_t(y) * size_t(W);
+    const uchar* orow = obuf + size_t(y) * size_t(W);
+    uchar* a = cand.ptr<uchar>(y);
+    for (int x = 0; x < W; ++x) a[x] = orow[x] & uchar(-int(cr[x] > lo)) & uchar(-int(cr[x] <= hi));
+  }
+  cv::bitwise_not(cand, grown);
+  dilate_square(grown, opened, 2);
+  cv::bitwise_not(opened, opened);
+  dilate_square(opened, opened, 2);
+  if (cv::countNonZero(opened) == 0) return false;
+  dilate_square(opened, grown, 2);
+  grown &= cand;
+  cv::Mat core(H, W, CV_8U), outside(H, W, CV_8U), band(H, W, CV_8U);
+  for (int y = 0; y < H; ++y) {
+    const uchar* cr = cbuf + size_t(y) * size_t(W);
+    const uchar* orow = obuf + size_t(y) * size_t(W);
+    uchar* b = core.ptr<uchar>(y);
+    uchar* o = outside.ptr<uchar>(y);
+    uchar* bd = band.ptr<uchar>(y);
+    for (int x = 0; x < W; ++x) {
+      const uchar above = uchar(-int(cr[x] > lo));
+      bd[x] = orow[x] & ~above;
+      b[x] = orow[x] & uchar(-int(cr[x] > hi));
+      o[x] = uchar(~orow[x] | ~above);
+    }
+  }
+  cv::Mat pieces, stats, centres;
+  const int np = cv::connectedComponentsWithStats(grown, pieces, stats, centres, 8, CV_32S);
+  cv::Mat shade(H, W, CV_8U, cv::Scalar(0));
+  bool any = false;
+  for (int p = 1; p < np; ++p) {
+    const int area = stats.at<int>(p, cv::CC_STAT_AREA);
+    if (area > n_hi || area < 0.1 * n_hi) continue;
+    cv::Mat piece = pieces == p, ring;
+    dilate_square(piece, ring, 1);
+    ring &= ~piece;
+    const int n_ring = cv::countNonZero(ring);
+    if (n_ring == 0) continue;
+    const int n_out = cv::countNonZero(ring & outside);
+    if (cv::countNonZero(ring & core) < 0.1 * n_ring || n_out < 0.1 * n_ring) continue;
+    // Soft: the component's band below the half level is deeper beyond the piece than beyond the object's own
+    // edge elsewhere (a shadow's penumbra against the camera's blur). Depth: the band within 8 px over the band
+    // within 1 px.
+    cv::Mat m1, m8, far_p, half_region = cand | core;
+    dilate_square(piece, m1, 1);
+    dilate_square(piece, m8, 8);
+    const double w_piece = double(cv::countNonZero(m8 & band)) / std::max(1, cv::countNonZero(m1 & band));
+    dilate_square(m8, far_p, 8);
+    dilate_square(half_region, m1, 1);
+    dilate_square(half_region, m8, 8);
+    const int n_c1 = cv::countNonZero(m1 & band & ~far_p);
+    const double w_core = double(cv::countNonZero(m8 & band & ~far_p)) / std::max(1, n_c1);
+    if (n_c1 == 0 || w_piece < 2 * w_core) continue;  // no free edge to compare with, or not soft
+    shade |= piece;
+    any = true;
+  }
+  if (!any) return false;
+  int sh[256] = {}, ns = 0;
+  for (int y = 0; y < H; ++y) {
+    const uchar* cr = cbuf + size_t(y) * size_t(W);
+    const uchar* m = shade.ptr<uchar>(y);
+    for (int x = 0; x < W; ++x)
+      if (m[x]) sh[cr[x]]++, ++ns;
+  }
+  int s = 0;
+  for (int acc = 0; s < 256 && (acc += sh[s]) * 2 < ns; ++s) {}
+  int L = cut + 1;
+  for (double acc = 0; L < 256 && (acc += hist[L]) * 2 < n_hi; ++L) {}
+  if (L - s < 1) return false;
+  cv::Mat zone;
+  dilate_square(shade, zone, 2);
+  const double k = double(L) / double(L - s);
+  for (int y = 0; y < H; ++y) {
+    uchar* cr = cbuf + size_t(y) * size_t(W);
+    const uchar* z = zone.ptr<uchar>(y);
+    for (int x = 0; x < W; ++x)
+      if (z[x]) cr[x] = uchar(std::clamp(int(std::lround((cr[x] - s) * k)), 0, 255));
+  }
+  return true;
+}
+
 // Soft layer of one component in one fused pass: s = (c - lo) / (hi - lo) clamped, with lo = 2 sigma and
 // hi = level - 2 sigma around the object's contrast level (median over its pixels), so noise leaves the
 // interior at 1 and the table at 0 while the anti-aliased edge keeps its covered fraction (half level =
 // level / 2). Pixels of other objects are 0.
 void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign, cv::Rect roi, double threshold,
-                Layer& layer) {
+                Layer& layer, bool shade_shelf = false) {
   const cv::Mat lab = labels(roi), g = con.gray(roi), bg = con.background(roi);
   const int W = roi.width, H = roi.height;
   layer.sign = sign;
@@ -57,12 +175,22 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign,
   for (int i = 0; i < 256; ++i) hist[i] = hist4[0][i] + hist4[1][i] + hist4[2][i] + hist4[3][i];
   hist[0] = n;  // bin 0 also counted the pixels outside the component
   for (int i = 1; i < 256; ++i) hist[0] -= hist[i];
-  int acc = 0, med = 0;
-  for (int i = 0; i < 256; ++i)
-    if ((acc += hist[i]) * 2 >= n) {
-      med = i;
-      break;
-    }
+  auto median = [&] {
+    int acc = 0;
+    for (int i = 0; i < 256; ++i)
+      if ((acc += hist[i]) * 2 >= n) return i;
+    return 0;
+  };
+  int med = median();
+  if (shade_shelf && sign < 0 &&
+      drop_shade_shelf(cbuf.data(), obuf.data(), W, H, hist, int(std::floor(std::max<double>(med, threshold) / 2)),
+                       con.noise_sigma)) {
+    // The contrast changed near the shade: the component's median again.
+    std::fill(hist, hist + 256, 0);
+    for (size_t i = 0; i < cbuf.size(); ++i)
+      if (obuf[i]) hist[cbuf[i]]++;
+    med = median();
+  }
   const double level = std::max<double>(med, threshold);
   layer.level = level;
   const double lo = std::min(2 * con.noise_sigma, level * 0.25), hi = std::max(level - 2 * con.noise_sigma, level * 0.75);
@@ -270,10 +398,11 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
     return cv::Rect(box.x - opt.margin_px, box.y - opt.margin_px, box.width + 2 * opt.margin_px,
                     box.height + 2 * opt.margin_px) & frame;
   };
+  const bool shelf = opt.soft_shade && con.modelled;  // a captured background has its own shade model
   for (const Cand& k : keep) {
     Layer layer;
     const int sg = out.sign[size_t(k.label)];
-    make_layer(con, out.labels, k.label, sg, grow(k.box), out.threshold, layer);
+    make_layer(con, out.labels, k.label, sg, grow(k.box), out.threshold, layer, shelf);
     // Near objects joined by their blurred edges at the low threshold come apart at the half level:
     // each piece big enough becomes an object of its own, with a new label.
     int big = 0;
@@ -309,7 +438,7 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
         lab.setTo(id, body);
         cv::Rect box = cv::boundingRect(body) + layer.roi.tl();
         Layer piece;
-        make_layer(con, out.labels, id, sg, grow(box), out.threshold, piece);
+        make_layer(con, out.labels, id, sg, grow(box), out.threshold, piece, shelf);
         piece.pieces.clear();
         piece.touching = true;
         if (cv::countNonZero(piece.inside) >= opt.min_area_px) out.layers.push_back(std::move(piece));
@@ -328,7 +457,7 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
       lab.setTo(id, mask & (lab == k.label));
       cv::Rect box = cv::boundingRect(p.second) + layer.roi.tl();
       Layer piece;
-      make_layer(con, out.labels, id, sg, grow(box), out.threshold, piece);
+      make_layer(con, out.labels, id, sg, grow(box), out.threshold, piece, shelf);
       piece.pieces.clear();
       if (cv::countNonZero(piece.inside) >= opt.min_area_px) pieces.push_back(std::move(piece));
     }

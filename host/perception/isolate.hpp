@@ -22,6 +22,8 @@ struct IsolationOptions {
   double fringe_ratio = 1.5;     // a region attached to an object of the other polarity with this many times
                                  // its contrast is that object's shadow or glare, not an object; so is one of
                                  // its own polarity with at most a quarter of its area (a soft shade)
+  bool soft_shade = true;        // without a captured background, a dark object's soft shadow beside it (a shelf
+                                 // of contrast between its half level and its own) is taken out of its outline
   SplitOptions split;
 };
 
