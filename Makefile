@@ -34,6 +34,7 @@ bench: host firmware
 	@tools/bench/firmware
 	@tools/bench/motion
 	@tools/bench/link-window
+	@tools/bench/crc-avr
 	@tools/bench/perception-speed
 	@tools/bench/perception-accuracy
 	@tools/bench/perception-corpus

@@ -20,7 +20,7 @@ class FakePeer {
  public:
   struct Received {
     uint8_t seq, type;
-    uint16_t crc;
+    uint32_t crc;
     std::chrono::steady_clock::time_point at;
   };
 

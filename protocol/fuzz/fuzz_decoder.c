@@ -88,8 +88,9 @@ static void on_frame(void *ctx, const rbx1_frame *f) {
   CHECK(f->len <= RBX1_MAX_PAYLOAD);
   n = rbx1_frame_encode(wire, sizeof wire, f->seq, f->type, f->payload, f->len);
   CHECK(n == (size_t)f->len + RBX1_FRAME_OVERHEAD);
-  CHECK(rbx1_crc16(wire + 1, n - 3) == f->crc); /* CRC valid */
-  CHECK((uint16_t)(wire[n - 2] | (wire[n - 1] << 8)) == f->crc);
+  CHECK(rbx1_crc32(wire + 1, n - 5) == f->crc); /* CRC valid */
+  CHECK(((uint32_t)wire[n - 4] | ((uint32_t)wire[n - 3] << 8) | ((uint32_t)wire[n - 2] << 16) |
+         ((uint32_t)wire[n - 1] << 24)) == f->crc);
   CHECK(occurs_in(p->stream, p->stream_len, wire, n)); /* re-encodes to bytes that were on the wire */
   mix(p, 0x100u | f->seq);
   mix(p, f->type);

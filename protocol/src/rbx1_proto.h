@@ -10,10 +10,10 @@
 extern "C" {
 #endif
 
-#define RBX1_PROTO_VERSION 3
+#define RBX1_PROTO_VERSION 4
 #define RBX1_SYNC 0xA5
 #define RBX1_MAX_PAYLOAD 58
-#define RBX1_FRAME_OVERHEAD 6
+#define RBX1_FRAME_OVERHEAD 8 /* SYNC LEN SEQ TYPE + 4 CRC bytes */
 #define RBX1_MAX_FRAME (RBX1_MAX_PAYLOAD + RBX1_FRAME_OVERHEAD)
 #define RBX1_JOINTS 6
 #define RBX1_RESPONSE(type) ((uint8_t)((type) | 0x80u))
@@ -21,9 +21,10 @@ extern "C" {
 /* Message ids, status codes, states, bits and config keys: generated from messages.json. */
 #include "rbx1_messages.h"
 
-/* CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, xorout 0); check("123456789") = 0x29B1. */
-uint16_t rbx1_crc16_update(uint16_t crc, uint8_t byte);
-uint16_t rbx1_crc16(const uint8_t *data, size_t n);
+/* CRC-32/ISO-HDLC (zlib's crc32: poly 0x04C11DB7 reflected, init and xorout 0xFFFFFFFF); check("123456789") =
+ * 0xCBF43926. rbx1_crc32_update steps the register alone: start from 0xFFFFFFFF, invert the end result. */
+uint32_t rbx1_crc32_update(uint32_t crc, uint8_t byte);
+uint32_t rbx1_crc32(const uint8_t *data, size_t n);
 
 /* Writes one frame into out (cap bytes). Returns the frame length, or 0 if len > RBX1_MAX_PAYLOAD or cap is too small. */
 size_t rbx1_frame_encode(uint8_t *out, size_t cap, uint8_t seq, uint8_t type, const uint8_t *payload, uint8_t len);
@@ -33,7 +34,7 @@ typedef struct {
   uint8_t seq;
   uint8_t type;
   uint8_t len;
-  uint16_t crc;
+  uint32_t crc;
   uint8_t payload[RBX1_MAX_PAYLOAD];
 } rbx1_frame;
 

@@ -21,7 +21,7 @@ static rbx1_window_held *held_of(const rbx1_window *w, uint8_t seq) {
   return NULL;
 }
 
-uint8_t rbx1_window_classify(const rbx1_window *w, uint8_t seq, uint16_t crc, const rbx1_window_entry **dup) {
+uint8_t rbx1_window_classify(const rbx1_window *w, uint8_t seq, uint32_t crc, const rbx1_window_entry **dup) {
   uint8_t i, ahead;
   const rbx1_window_held *h;
   /* Remembered entries first: a retransmission of the newest one has SEQ expect - 1. */
@@ -97,7 +97,7 @@ uint8_t rbx1_window_drop_held(rbx1_window *w, uint8_t *seqs) {
   return n;
 }
 
-void rbx1_window_record(rbx1_window *w, uint8_t seq, uint16_t crc, uint8_t type, const uint8_t *payload, uint8_t len) {
+void rbx1_window_record(rbx1_window *w, uint8_t seq, uint32_t crc, uint8_t type, const uint8_t *payload, uint8_t len) {
   rbx1_window_entry *e;
   if (w->count == 0) {
     w->newest = 0;

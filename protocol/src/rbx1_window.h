@@ -14,7 +14,7 @@ extern "C" {
 
 /* Requests a host may keep in flight, and requests (with their answers) the firmware remembers. HELLO reports it.
  * AVR RAM: RBX1_WINDOW * sizeof(rbx1_window_entry) + RBX1_HELD_MAX * sizeof(rbx1_window_held) + 4
- * = 8 * 45 + 7 * 32 + 4 = 588 bytes. */
+ * = 8 * 47 + 7 * 34 + 4 = 618 bytes (the CRC is 4 bytes of each: 588 with version 3's CRC-16). */
 #define RBX1_WINDOW 8
 /* Requests held ahead of a gap: SEQ expect + 1 .. expect + RBX1_WINDOW - 1 (a host's window beyond the missing one). */
 #define RBX1_HELD_MAX (RBX1_WINDOW - 1)
@@ -22,7 +22,7 @@ extern "C" {
 /* One remembered request: its SEQ and CRC, and the response that answered it. */
 typedef struct {
   uint8_t seq;
-  uint16_t crc;
+  uint32_t crc;
   uint8_t type; /* the answer's TYPE */
   uint8_t len;  /* the answer's payload length */
   uint8_t payload[RBX1_MAX_RESP_LEN];
@@ -33,7 +33,7 @@ typedef struct {
 typedef struct {
   uint8_t used; /* 0: a free slot */
   uint8_t seq;
-  uint16_t crc;
+  uint32_t crc;
   uint8_t type;
   uint8_t len; /* the frame's payload length */
   uint8_t payload[RBX1_MAX_REQ_LEN];
@@ -61,10 +61,10 @@ enum {
 
 void rbx1_window_init(rbx1_window *w);
 /* Classifies a request by its SEQ and CRC; for RBX1_WIN_DUPLICATE *dup points to the remembered entry. */
-uint8_t rbx1_window_classify(const rbx1_window *w, uint8_t seq, uint16_t crc, const rbx1_window_entry **dup);
+uint8_t rbx1_window_classify(const rbx1_window *w, uint8_t seq, uint32_t crc, const rbx1_window_entry **dup);
 /* Records the answer of a RBX1_WIN_NEW request (the oldest entry is forgotten when full); the next expected SEQ
  * becomes seq + 1. len is clipped to RBX1_MAX_RESP_LEN. */
-void rbx1_window_record(rbx1_window *w, uint8_t seq, uint16_t crc, uint8_t type, const uint8_t *payload, uint8_t len);
+void rbx1_window_record(rbx1_window *w, uint8_t seq, uint32_t crc, uint8_t type, const uint8_t *payload, uint8_t len);
 /* The receiver's decision for a CRC-valid frame: ESTOP (any payload) is RBX1_WIN_BYPASS (the caller then drops the
  * held requests: rbx1_window_drop_held); a TYPE that is not a request type (unknown ids, NAK, responses), whatever its
  * SEQ, is RBX1_WIN_UNKNOWN; a HELLO that is not a duplicate starts a new session (rbx1_window_restart; *last_seq is

@@ -1,6 +1,7 @@
 // test_framing.cpp - CRC, frame encoding and the streaming decoder against the shared vectors and invariants.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 
 #include "rbx1_proto.h"
@@ -53,9 +54,9 @@ json decode_chunked(const std::vector<uint8_t>& wire, const std::vector<size_t>&
 
 }  // namespace
 
-TEST(Crc, CheckValueOfCcittFalse) {
+TEST(Crc, CheckValueOfIsoHdlc) {
   const uint8_t check[] = {'1', '2', '3', '4', '5', '6', '7', '8', '9'};
-  EXPECT_EQ(rbx1_crc16(check, sizeof check), 0x29B1);
+  EXPECT_EQ(rbx1_crc32(check, sizeof check), 0xCBF43926u);
 }
 
 TEST(Crc, Vectors) {
@@ -63,23 +64,23 @@ TEST(Crc, Vectors) {
   ASSERT_GE(vs.size(), 4u);
   for (const auto& v : vs) {
     auto data = unhex(v["data"]);
-    EXPECT_EQ(rbx1_crc16(data.data(), data.size()), v["crc"].get<int>()) << v["data"];
-    uint16_t crc = 0xFFFF;  // the incremental form agrees
-    for (uint8_t b : data) crc = rbx1_crc16_update(crc, b);
-    EXPECT_EQ(crc, v["crc"].get<int>());
+    EXPECT_EQ(rbx1_crc32(data.data(), data.size()), v["crc"].get<uint32_t>()) << v["data"];
+    uint32_t crc = 0xFFFFFFFFu;  // the incremental form agrees
+    for (uint8_t b : data) crc = rbx1_crc32_update(crc, b);
+    EXPECT_EQ(~crc, v["crc"].get<uint32_t>());
   }
 }
 
-TEST(Budget, OverheadIsSixBytesAndMoveFrameIs32) {
-  EXPECT_EQ(RBX1_FRAME_OVERHEAD, 6);
-  EXPECT_EQ(RBX1_MAX_FRAME, 64);
+TEST(Budget, OverheadIsEightBytesAndMoveFrameIs34) {
+  EXPECT_EQ(RBX1_FRAME_OVERHEAD, 8);
+  EXPECT_EQ(RBX1_MAX_FRAME, 66);
   uint8_t out[RBX1_MAX_FRAME];
-  EXPECT_EQ(rbx1_frame_encode(out, sizeof out, 0, RBX1_MSG_STATUS, nullptr, 0), 6u);
+  EXPECT_EQ(rbx1_frame_encode(out, sizeof out, 0, RBX1_MSG_STATUS, nullptr, 0), 8u);
   rbx1_move_req m = {{1, 2, 3, 4, 5, 6}, 100};
   uint8_t payload[RBX1_MAX_PAYLOAD];
   uint8_t len = rbx1_move_req_pack(&m, payload);
   EXPECT_EQ(len, 26);
-  EXPECT_EQ(rbx1_frame_encode(out, sizeof out, 0, RBX1_MSG_MOVE, payload, len), 32u);
+  EXPECT_EQ(rbx1_frame_encode(out, sizeof out, 0, RBX1_MSG_MOVE, payload, len), 34u);
 }
 
 TEST(Encode, RejectsOversizeAndSmallBuffers) {
@@ -87,8 +88,8 @@ TEST(Encode, RejectsOversizeAndSmallBuffers) {
   uint8_t out[RBX1_MAX_FRAME + 1];
   EXPECT_EQ(rbx1_frame_encode(out, sizeof out, 1, 2, payload, RBX1_MAX_PAYLOAD + 1), 0u);
   EXPECT_EQ(rbx1_frame_encode(out, RBX1_MAX_FRAME, 1, 2, payload, RBX1_MAX_PAYLOAD), size_t(RBX1_MAX_FRAME));
-  EXPECT_EQ(rbx1_frame_encode(out, 10, 1, 2, payload, 5), 0u);
-  EXPECT_EQ(rbx1_frame_encode(out, 11, 1, 2, payload, 5), 11u);
+  EXPECT_EQ(rbx1_frame_encode(out, 12, 1, 2, payload, 5), 0u);
+  EXPECT_EQ(rbx1_frame_encode(out, 13, 1, 2, payload, 5), 13u);
 }
 
 TEST(Encode, MessageVectorsWireBytes) {
@@ -118,6 +119,31 @@ TEST(Decoder, StreamVectorsInAnyChunking) {
       EXPECT_EQ(timeout, v["after_timeout"]) << v["name"] << " chunk " << ch[0];
     }
   }
+}
+
+// A MOVE whose line damage leaves version 3's CRC-16 intact (vector crc16_collision): the CRC-32 rejects it.
+TEST(Decoder, RejectsTheCrc16Collision) {
+  const json crcs = load_vectors("crc.json");
+  ASSERT_GE(crcs.size(), 2u);
+  const auto sent = unhex(crcs[crcs.size() - 2]["data"]);  // the body sent, and as received
+  const auto got = unhex(crcs[crcs.size() - 1]["data"]);
+  for (const auto& v : load_vectors("streams.json")) {
+    if (v["name"] != "crc16_collision") continue;
+    auto wire = unhex(v["wire"]);
+    ASSERT_EQ(wire.size(), got.size() + RBX1_FRAME_OVERHEAD - 3);
+    EXPECT_TRUE(std::equal(got.begin(), got.end(), wire.begin() + 1));
+    EXPECT_NE(sent, got);
+    uint32_t rx = wire[wire.size() - 4] | (wire[wire.size() - 3] << 8) | (wire[wire.size() - 2] << 16) |
+                  (uint32_t(wire[wire.size() - 1]) << 24);
+    EXPECT_EQ(rbx1_crc32(sent.data(), sent.size()), rx);  // the CRC the sender wrote
+    EXPECT_NE(rbx1_crc32(got.data(), got.size()), rx);
+    bool pending = true;
+    json events = decode_chunked(wire, {1}, &pending);
+    EXPECT_EQ(events, json::parse(R"([{"reject": {"status": "BAD_CRC", "seq": 7}}])"));
+    EXPECT_FALSE(pending);
+    return;
+  }
+  FAIL() << "no vector crc16_collision";
 }
 
 TEST(Decoder, MessageVectorsDecodeToTheirFrame) {

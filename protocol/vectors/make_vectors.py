@@ -5,6 +5,7 @@ Each stream's expected events are written down by construction here (not read ba
 then checks that the Python decoder agrees before writing, and both the C and the Python tests check every vector.
 Run after a change to messages.json: /usr/bin/python3 protocol/vectors/make_vectors.py
 """
+import binascii
 import json
 import os
 import sys
@@ -63,21 +64,37 @@ def message_vectors():
             wire = frame.encode(seq, ftype, payload)
             out.append({"name": f"{t.name} {kind}", "kind": kind, "msg": int(t), "type": ftype, "seq": seq,
                         "fields": jsonable(fields), "payload": payload.hex(), "wire": wire.hex(),
-                        "crc": frame.crc16(wire[1:-2])})
+                        "crc": frame.crc32(wire[1:-4])})
         seq = (seq + 37) & 0xFF  # vary SEQ, and pass through 0xA5-ish values
     for seq, reason in ((5, Status.BAD_CRC), (0xA5, Status.BAD_LENGTH), (255, Status.UNKNOWN_TYPE)):
         payload = messages.pack_nak(reason)
         wire = frame.encode(seq, MsgType.NAK, payload)
         out.append({"name": f"NAK {reason.name}", "kind": "nak", "msg": int(MsgType.NAK), "type": int(MsgType.NAK),
                     "seq": seq, "fields": {"reason": int(reason)}, "payload": payload.hex(), "wire": wire.hex(),
-                    "crc": frame.crc16(wire[1:-2])})
+                    "crc": frame.crc32(wire[1:-4])})
     return out
 
 
 def ev_frame(b):
     """Expected frame event for an encoded frame b."""
     n = b[1]
-    return {"frame": {"seq": b[2], "type": b[3], "payload": b[4:4 + n].hex(), "crc": b[4 + n] | (b[5 + n] << 8)}}
+    return {"frame": {"seq": b[2], "type": b[3], "payload": b[4:4 + n].hex(),
+                      "crc": int.from_bytes(b[4 + n:8 + n], "little")}}
+
+
+def crc16_collision():
+    """(sent, received, target): a MOVE (SEQ 7, targets 1..6) and the same frame after a line error whose CRC-16 over
+    LEN..PAYLOAD still matches (the bits of the CRC-16 generator 0x11021 flipped: a multiple of the generator leaves
+    any CRC-16/CCITT-FALSE unchanged), and joint 1's target as the receiver would read it."""
+    sent = frame.encode(7, MsgType.MOVE, messages.pack_request(MsgType.MOVE, target=[1, 2, 3, 4, 5, 6], duration_ms=0))
+    got = bytearray(sent)
+    for i, x in enumerate(b"\x01\x10\x21"):
+        got[4 + i] ^= x  # the first target's low three bytes
+    got = bytes(got)
+    body = slice(1, len(sent) - 4)
+    assert binascii.crc_hqx(got[body], 0xFFFF) == binascii.crc_hqx(sent[body], 0xFFFF)  # CRC-16 blind to it
+    assert frame.crc32(got[body]) != frame.crc32(sent[body]) and got[-4:] == sent[-4:]
+    return sent, got, messages.unpack_request(MsgType.MOVE, got[4:-4])["target"][0]
 
 
 def ev_reject(status, seq):
@@ -93,7 +110,7 @@ def stream_vectors():
         MsgType.SET_POSITION, position=[-0x5A5A5A5B, 0xA5, 0xA5A5, 0xA5A5A5, 0, 0]))
     assert sync_seq.count(0xA5) >= 8
     # A frame whose CRC itself contains 0xA5 (search SEQ for it).
-    crc_a5 = next(f for f in (frame.encode(s, t) for t in MsgType for s in range(256)) if 0xA5 in f[-2:])
+    crc_a5 = next(f for f in (frame.encode(s, t) for t in MsgType for s in range(256)) if 0xA5 in f[-4:])
     maxf = frame.encode(1, 0x55, bytes(range(58)))  # longest payload; unknown TYPE is the firmware's business
     empty_unknown = frame.encode(2, 0x00, b"")
 
@@ -118,9 +135,9 @@ def stream_vectors():
         S.append({"name": name, "description": description, "wire": wire.hex(), "events": events, "pending": pending,
                   "after_timeout": list(after_timeout)})
 
-    add("single_move", "one MOVE request (32 bytes on the wire)", move, [ev_frame(move)])
-    add("empty_payload", "STATUS request: LEN 0, 6 bytes", status, [ev_frame(status)])
-    add("max_payload", "58-byte payload, 64-byte frame", maxf, [ev_frame(maxf)])
+    add("single_move", "one MOVE request (34 bytes on the wire)", move, [ev_frame(move)])
+    add("empty_payload", "STATUS request: LEN 0, 8 bytes", status, [ev_frame(status)])
+    add("max_payload", "58-byte payload, 66-byte frame", maxf, [ev_frame(maxf)])
     add("unknown_type", "a CRC-valid frame of an unknown TYPE is delivered (the firmware NAKs UNKNOWN_TYPE)",
         empty_unknown, [ev_frame(empty_unknown)])
     add("back_to_back", "STATUS, MOVE, HELLO response, NAK with no gap", status + move + hello_resp + nak,
@@ -148,6 +165,10 @@ def stream_vectors():
     add("corrupt_len_swallows_next", "STATUS with LEN hit (10): its candidate ends inside the next MOVE; rejected, "
         "the MOVE found by the rescan", status_len_hit + move, [ev_reject(Status.BAD_CRC, 8), ev_frame(move)])
     add("truncated", "a MOVE cut 2 bytes short: nothing yet, frame pending", move[:-2], [], pending=True)
+    add("crc16_collision", "a MOVE hit by a line error that CRC-16/CCITT-FALSE (protocol version 3) cannot see: "
+        "bytes 01 10 21 (the generator x^16+x^12+x^5+1) XORed into the first target, so joint 1's target reads "
+        f"{crc16_collision()[2]} instead of 1 and the CRC-16 over LEN..PAYLOAD is unchanged; the CRC-32 rejects it",
+        crc16_collision()[1], [ev_reject(Status.BAD_CRC, 7)])
     add("truncated_header", "SYNC and LEN only", move[:2], [], pending=True)
     add("truncated_swallows_short_frame", "a MOVE cut after 10 bytes, then a STATUS: the STATUS bytes are taken as "
         "the MOVE's continuation; the 50 ms inter-byte timeout drops the MOVE's SYNC and the rescan finds the STATUS",
@@ -283,6 +304,11 @@ def window_vectors():
          (frame.encode(10, MsgType.ESTOP, b"\x01").hex(), "bypass"), (req(10), "new"), (req(10), "duplicate", 4)])
     add("same_seq_other_bytes", "a used SEQ with other bytes is not a retransmission: refused",
         [(move(30, 1), "new"), (move(30, 2), "old"), (move(30, 1), "duplicate", 0)])
+    crc = lambda wire: int.from_bytes(bytes.fromhex(wire)[-4:], "little")  # noqa: E731
+    x = next(x for x in range(2, 1 << 20) if (crc(move(31, x)) ^ crc(move(31, 1))) & 0xFFFF == 0)  # high halves differ
+    add("crc_high_half_tells", f"two MOVEs with one SEQ whose CRC-32s differ in the high 16 bits alone (targets 1 and "
+        f"{x}): the window compares all 32 bits, so the second is a used SEQ with other bytes, not a duplicate",
+        [(move(31, 1), "new"), (move(31, x), "old"), (move(31, 1), "duplicate", 0)])
     add("unknown_type_no_place", "a frame of no request type (unknown id, NAK, a response) is NAKed UNKNOWN_TYPE "
         "whatever its SEQ and takes no place in the order: its SEQ stays the next one, nothing is remembered",
         [(req(40), "new"), (frame.encode(41, 0x33, b"").hex(), "unknown"), (frame.encode(41, 0x33, b"").hex(), "unknown"),
@@ -313,12 +339,15 @@ def window_vectors():
 
 
 def crc_vectors():
-    return [{"data": b"123456789".hex(), "crc": 0x29B1}, {"data": "", "crc": 0xFFFF},
-            {"data": "00", "crc": frame.crc16(b"\x00")}, {"data": "a5" * 10, "crc": frame.crc16(b"\xa5" * 10)}]
+    sent, got, _ = crc16_collision()  # two bodies with one CRC-16 and two CRC-32s
+    return [{"data": b"123456789".hex(), "crc": 0xCBF43926}, {"data": "", "crc": 0},
+            {"data": "00", "crc": frame.crc32(b"\x00")}, {"data": "a5" * 10, "crc": frame.crc32(b"\xa5" * 10)},
+            {"data": sent[1:-4].hex(), "crc": frame.crc32(sent[1:-4])},
+            {"data": got[1:-4].hex(), "crc": frame.crc32(got[1:-4])}]
 
 
 def main():
-    assert frame.crc16(b"123456789") == 0x29B1
+    assert frame.crc32(b"123456789") == 0xCBF43926
     docs = {
         "messages.json": {"description": "every message type's request and response (and NAKs): fields, payload and "
                           "wire bytes in hex; crc is the frame's CRC", "vectors": message_vectors()},
@@ -328,7 +357,8 @@ def main():
         "bad_payloads.json": {"description": "CRC-valid frames whose payload length is wrong for their type: "
                               "unpack refuses them (BAD_LENGTH; the firmware answers a request like this with "
                               "status BAD_LENGTH, except ESTOP, which stops the arm whatever its length)", "vectors": bad_payload_vectors()},
-        "crc.json": {"description": "CRC-16/CCITT-FALSE of data (hex)", "vectors": crc_vectors()},
+        "crc.json": {"description": "CRC-32/ISO-HDLC of data (hex); the last two have the same CRC-16/CCITT-FALSE "
+                     "(vector crc16_collision in streams.json)", "vectors": crc_vectors()},
         "window.json": {"description": "requests fed in order to a receiver's window, with the expected verdict "
                         "(new, duplicate, held, gap, old, bypass, unknown); a new request's answer is recorded as its step "
                         "index, answer_of names the step whose answer a duplicate gets, last_seq what a "

@@ -17,6 +17,7 @@ import tty
 
 SYNC = 0xA5
 MAX_PAYLOAD = 58
+OVERHEAD = 8  # SYNC LEN SEQ TYPE and the 4 CRC bytes (PROTOCOL.md)
 
 
 class Direction:
@@ -78,7 +79,7 @@ class Direction:
                 self._emit(bytes(b[:1]), now, False)
                 del b[:1]
                 continue
-            n = b[1] + 6
+            n = b[1] + OVERHEAD
             if len(b) < n:
                 break
             self._emit(bytes(b[:n]), now, True)

@@ -23,11 +23,19 @@ void settings_defaults(void) {
   }
 }
 
+// CRC-16/CCITT-FALSE step (poly 0x1021, no table). The link's frames moved to CRC-32 (protocol version 4); the
+// EEPROM image keeps this CRC so that boards keep their settings across the reflash.
+static uint16_t crc16_update(uint16_t crc, uint8_t byte) {
+  uint8_t x = (uint8_t)((crc >> 8) ^ byte);
+  x ^= (uint8_t)(x >> 4);
+  return (uint16_t)((crc << 8) ^ ((uint16_t)x << 12) ^ ((uint16_t)x << 5) ^ x);
+}
+
 static uint16_t image_crc(const uint8_t *header, const settings_t *s) {
   uint16_t crc = 0xFFFFu;
-  for (uint8_t i = 0; i < 4; i++) crc = rbx1_crc16_update(crc, header[i]);
+  for (uint8_t i = 0; i < 4; i++) crc = crc16_update(crc, header[i]);
   const uint8_t *p = (const uint8_t *)s;
-  for (uint16_t i = 0; i < sizeof(settings_t); i++) crc = rbx1_crc16_update(crc, p[i]);
+  for (uint16_t i = 0; i < sizeof(settings_t); i++) crc = crc16_update(crc, p[i]);
   return crc;
 }
 

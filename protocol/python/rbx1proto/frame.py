@@ -1,9 +1,10 @@
-"""frame.py - RBX1 framing: CRC-16/CCITT-FALSE, frame encoding and the resynchronising stream decoder (as the C one)."""
+"""frame.py - RBX1 framing: CRC-32/ISO-HDLC, frame encoding and the resynchronising stream decoder (as the C one)."""
+import zlib
 from collections import namedtuple
 
 SYNC = 0xA5
 MAX_PAYLOAD = 58
-OVERHEAD = 6
+OVERHEAD = 8  # SYNC LEN SEQ TYPE and the 4 CRC bytes
 MAX_FRAME = MAX_PAYLOAD + OVERHEAD
 BAD_CRC = 1     # = messages.Status.BAD_CRC (kept literal so framing does not depend on the message table)
 BAD_LENGTH = 2  # = messages.Status.BAD_LENGTH
@@ -12,25 +13,20 @@ Frame = namedtuple("Frame", "seq type payload crc")
 Reject = namedtuple("Reject", "status seq")  # seq is None when the SEQ byte was not read
 
 
-def crc16(data, crc=0xFFFF):
-    """CRC-16/CCITT-FALSE: poly 0x1021, init 0xFFFF, no reflection, xorout 0. crc16(b'123456789') == 0x29B1."""
-    for b in bytes(data):
-        x = ((crc >> 8) ^ b) & 0xFF
-        x ^= x >> 4
-        crc = ((crc << 8) ^ (x << 12) ^ (x << 5) ^ x) & 0xFFFF
-    return crc
+def crc32(data):
+    """CRC-32/ISO-HDLC (zlib's crc32): crc32(b'123456789') == 0xCBF43926."""
+    return zlib.crc32(bytes(data)) & 0xFFFFFFFF
 
 
 def encode(seq, type, payload=b""):
-    """One frame: SYNC LEN SEQ TYPE PAYLOAD CRC(lo, hi). ValueError if the payload exceeds 58 bytes."""
+    """One frame: SYNC LEN SEQ TYPE PAYLOAD CRC (4 bytes, little-endian). ValueError if the payload exceeds 58 bytes."""
     payload = bytes(payload)
     if len(payload) > MAX_PAYLOAD:
         raise ValueError(f"payload of {len(payload)} bytes exceeds {MAX_PAYLOAD}")
     if not 0 <= seq <= 255 or not 0 <= type <= 255:
         raise ValueError("seq and type are bytes")
     body = bytes([len(payload), seq, type]) + payload
-    crc = crc16(body)
-    return bytes([SYNC]) + body + bytes([crc & 0xFF, crc >> 8])
+    return bytes([SYNC]) + body + crc32(body).to_bytes(4, "little")
 
 
 class Decoder:
@@ -77,8 +73,8 @@ class Decoder:
                 continue
             if len(buf) < length + OVERHEAD:
                 return
-            rx = buf[4 + length] | (buf[5 + length] << 8)
-            if crc16(buf[1:4 + length]) == rx:
+            rx = int.from_bytes(buf[4 + length:OVERHEAD + length], "little")
+            if crc32(buf[1:4 + length]) == rx:
                 out.append(Frame(seq, buf[3], bytes(buf[4:4 + length]), rx))
                 self._shift(length + OVERHEAD)
             else:

@@ -1,4 +1,5 @@
 """test_frame.py - Python framing (CRC, encode, decoder) against the shared vectors, in any chunking."""
+import binascii
 import random
 
 import pytest
@@ -28,19 +29,19 @@ def feed_chunked(data, chunks):
 
 
 def test_crc_check_value():
-    assert frame.crc16(b"123456789") == 0x29B1
+    assert frame.crc32(b"123456789") == 0xCBF43926
 
 
 @pytest.mark.parametrize("v", load_vectors("crc.json"), ids=lambda v: v["data"][:12] or "empty")
 def test_crc_vectors(v):
-    assert frame.crc16(bytes.fromhex(v["data"])) == v["crc"]
+    assert frame.crc32(bytes.fromhex(v["data"])) == v["crc"]
 
 
 def test_budget_overhead_and_move_size():
-    assert frame.OVERHEAD == 6
-    assert len(frame.encode(0, 2)) == 6
+    assert frame.OVERHEAD == 8
+    assert len(frame.encode(0, 2)) == 8
     move = next(v for v in MESSAGES if v["name"] == "MOVE request")
-    assert len(bytes.fromhex(move["wire"])) == 32
+    assert len(bytes.fromhex(move["wire"])) == 34
 
 
 @pytest.mark.parametrize("v", MESSAGES, ids=lambda v: v["name"])
@@ -49,7 +50,7 @@ def test_encode_message_vectors(v):
 
 
 def test_encode_rejects_oversize():
-    assert len(frame.encode(1, 2, bytes(58))) == 64
+    assert len(frame.encode(1, 2, bytes(58))) == 66
     with pytest.raises(ValueError):
         frame.encode(1, 2, bytes(59))
 
@@ -98,9 +99,22 @@ def test_protocol_md_example_is_the_vector():
         doc = f.read()
     v = next(v for v in STREAMS if v["name"] == "protocol_md_example")
     wire = bytes.fromhex(v["wire"])
-    move, resp, nak = wire[:32], wire[32:40], wire[40:]
+    move, resp, nak = wire[:34], wire[34:44], wire[44:]
     for part in (move, resp, nak):
         assert part.hex(" ") in doc
-    assert "CRC 0x%04x (sent %02x %02x)" % (frame.crc16(move[1:-2]), move[-2], move[-1]) in doc
-    assert "CRC 0x%04x (sent %02x %02x)" % (frame.crc16(resp[1:-2]), resp[-2], resp[-1]) in doc
+    for part in (move, resp):
+        assert "CRC 0x%08x (sent %s)" % (frame.crc32(part[1:-4]), part[-4:].hex(" ")) in doc
     assert [type(e) for e in frame.Decoder().feed(wire)] == [frame.Frame] * 3
+
+
+def test_crc16_collision_is_rejected():
+    """Vector crc16_collision: a MOVE whose line damage leaves version 3's CRC-16 intact. The CRC-32 must reject it
+    (a decoder still on CRC-16 would deliver the damaged MOVE)."""
+    v = next(v for v in STREAMS if v["name"] == "crc16_collision")
+    got = bytes.fromhex(v["wire"])
+    crcs = load_vectors("crc.json")[-2:]  # the bodies sent and received
+    a, b = (bytes.fromhex(c["data"]) for c in crcs)
+    assert b == got[1:-4] and a != b and len(a) == len(b)
+    assert binascii.crc_hqx(a, 0xFFFF) == binascii.crc_hqx(b, 0xFFFF)
+    assert frame.crc32(a) != frame.crc32(b) and frame.crc32(a) == int.from_bytes(got[-4:], "little")
+    assert as_json(frame.Decoder().feed(got)) == [{"reject": {"status": "BAD_CRC", "seq": 7}}]

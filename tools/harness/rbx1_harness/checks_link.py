@@ -1,6 +1,7 @@
 """checks_link.py - handshake, framing, NAKs, resynchronisation after garbage, the window (order, at-most-once
 execution over the last WINDOW requests, requests ahead of a gap held and run in order once it is filled, old
 frames refused, streams)."""
+import binascii
 import random
 import time
 
@@ -130,6 +131,32 @@ def corrupt_frame_nak(b):
     unchanged(b, before)
 
 
+@check("crc16_blind_corruption_nak")
+def crc16_blind_corruption_nak(b):
+    # A line error that protocol version 3's CRC-16 could not see: the bits of its generator (0x11021) flipped in
+    # joint 1's target leave the CRC-16 over LEN..PAYLOAD unchanged. The CRC-32 must reject it (NAK BAD_CRC, nothing
+    # run); the frame as sent still runs afterwards (the rejection left the order alone).
+    before = b.status()
+    seq, wire = b.frame(MsgType.MOVE, seq=b.link.seq, target=[40, 0, 0, 0, 0, 0], duration_ms=0)
+    bad = bytearray(wire)
+    for i, x in enumerate(b"\x01\x10\x21"):
+        bad[4 + i] ^= x
+    body = slice(1, len(wire) - 4)
+    expect(binascii.crc_hqx(bytes(bad[body]), 0xFFFF) == binascii.crc_hqx(wire[body], 0xFFFF), "not a CRC-16 collision")
+    ev = b.exchange_raw(bytes(bad), until=lambda e: naks(e) or responses(e, MsgType.MOVE, seq))
+    expect(naks(ev) == [(seq, Status.BAD_CRC)], f"expected NAK BAD_CRC seq {seq}, got {ev}")
+    s = b.status()
+    expect(s["moves_accepted"] == before["moves_accepted"], f"the corrupt MOVE was accepted: {brief(s)}")
+    unchanged(b, before)
+    seq = b.next_seq()
+    wire = frame.encode(seq, MsgType.MOVE, wire[4:-4])
+    ev = b.exchange_raw(wire, until=lambda e: responses(e, MsgType.MOVE, seq))
+    r = responses(ev, MsgType.MOVE, seq)
+    expect(len(r) == 1 and r[0].payload[0] == Status.OK, f"the MOVE as sent was not accepted: {ev}")
+    s = b.wait_idle()
+    expect(s["position"][0] == 40, f"position {s['position']}, expected joint 1 at 40")
+
+
 @check("length_over_max_nak")
 def length_over_max_nak(b):
     before = b.status()
@@ -162,7 +189,7 @@ def frame_hidden_in_corrupt_frame(b):
     outer_seq = b.link.seq  # the outer frame is rejected: the hidden one is the next in order
     inner_seq, inner = b.frame(MsgType.STATUS)
     body = bytes([30, outer_seq, MsgType.MOVE]) + inner + bytes(30 - len(inner))
-    outer = bytes([frame.SYNC]) + body + b"\x00\x00"  # wrong CRC
+    outer = bytes([frame.SYNC]) + body + bytes(frame.OVERHEAD - 4)  # a wrong CRC
     ev = b.exchange_raw(outer, until=lambda e: responses(e, MsgType.STATUS, inner_seq) and naks(e))
     expect(naks(ev) == [(outer_seq, Status.BAD_CRC)], f"outer frame: expected NAK BAD_CRC, got {ev}")
     expect(len(responses(ev, MsgType.STATUS, inner_seq)) == 1, f"the hidden STATUS frame was not answered: {ev}")
