@@ -97,6 +97,8 @@ int Link::attach(int fd, std::string& error) {
     connected_ = true;
   }
   rbx1_decoder_init(&decoder_, &Link::on_frame, &Link::on_reject, this);
+  recent_.clear();
+  v3_seen_ = false;
   reader_ = std::thread(&Link::reader_loop, this, fd, wake);
   int r = handshake(error);
   if (r < 0) detach();
@@ -109,16 +111,51 @@ int Link::attach(int fd, std::string& error) {
 // would hold the board in its bootloader forever.
 constexpr auto kBootloaderQuiet = std::chrono::milliseconds(6000);
 
+namespace {
+
+// Protocol version 3's CRC-16/CCITT-FALSE, only to recognise a firmware of that version (below).
+uint16_t crc16_v3(const uint8_t* p, size_t n) {
+  uint16_t crc = 0xFFFF;
+  for (size_t i = 0; i < n; i++) {
+    uint8_t x = static_cast<uint8_t>((crc >> 8) ^ p[i]);
+    x ^= static_cast<uint8_t>(x >> 4);
+    crc = static_cast<uint16_t>((crc << 8) ^ (x << 12) ^ (x << 5) ^ x);
+  }
+  return crc;
+}
+
+// A frame a version 3 firmware sends (a NAK or a response, CRC-16 and 6 bytes of framing) among the bytes. Such a
+// firmware NAKs our HELLO BAD_CRC (it reads its CRC-32 as a CRC-16) in frames our decoder cannot read.
+bool has_v3_frame(const std::vector<uint8_t>& b) {
+  for (size_t i = 0; i + 6 <= b.size(); i++) {
+    size_t len = b[i + 1];
+    if (b[i] != RBX1_SYNC || len > RBX1_MAX_PAYLOAD || i + len + 6 > b.size()) continue;
+    if (b[i + 3] != RBX1_MSG_NAK && !(b[i + 3] & 0x80)) continue;
+    if (crc16_v3(&b[i + 1], len + 3) == (b[i + len + 4] | (b[i + len + 5] << 8))) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
 int Link::handshake(std::string& error) {
   rbx1_hello_resp h{};
   auto deadline = Clock::now() + std::chrono::milliseconds(boot_wait_ms_.load());
+  handshaking_ = true;
   int r = hello(h);
-  while (r == -ETIMEDOUT && Clock::now() < deadline) {
+  while (r == -ETIMEDOUT && !v3_seen_ && Clock::now() < deadline) {
     auto quiet = std::min<Clock::duration>(kBootloaderQuiet, deadline - Clock::now());
     spdlog::info("{}: no HELLO answer yet; quiet for {} ms so a board in its bootloader starts the firmware", name_,
                  std::chrono::duration_cast<std::chrono::milliseconds>(quiet).count());
     std::this_thread::sleep_for(quiet);
     r = hello(h);
+  }
+  handshaking_ = false;
+  if (r == -ETIMEDOUT && v3_seen_) {
+    error = name_ + ": firmware speaks protocol version 3 (CRC-16 frames: it NAKs every frame of ours), this host " +
+            std::to_string(RBX1_PROTO_VERSION) + "; flash the matching firmware: rbx1-flash " + name_ +
+            " (from a checkout: make flash PORT=" + name_ + ")";
+    return -EPROTO;
   }
   if (r == -EPROTO) {
     error = name_ + ": firmware speaks protocol version " + std::to_string(h.proto_version) + ", this host " +
@@ -219,6 +256,11 @@ void Link::reader_loop(int fd, int wake) {
         last_rx = Clock::now();
         counters_.bytes_received += static_cast<uint64_t>(got);
         rbx1_decoder_feed(&decoder_, buf, static_cast<size_t>(got));
+        if (handshaking_ && !v3_seen_) {  // the last 128 bytes, searched for a version 3 firmware's frames
+          recent_.insert(recent_.end(), buf, buf + got);
+          if (recent_.size() > 128) recent_.erase(recent_.begin(), recent_.end() - 128);
+          if (has_v3_frame(recent_)) v3_seen_ = true;
+        }
         continue;
       }
       if (got < 0 && (errno == EINTR || errno == EAGAIN)) continue;

@@ -192,6 +192,9 @@ class Link {
   std::deque<std::pair<uint8_t, uint32_t>> probes_;
   Waiter* estop_waiting_ = nullptr;  // the outstanding e-stop (under state_mu_)
   rbx1_decoder decoder_;   // reader thread only
+  std::vector<uint8_t> recent_;            // reader thread only: bytes received during the handshake
+  std::atomic<bool> handshaking_{false};   // HELLO of handshake() in progress: the reader looks for version 3 frames
+  std::atomic<bool> v3_seen_{false};       // a version 3 firmware's frame was received during the handshake
   rbx1_hello_resp hello_{};
   std::chrono::steady_clock::time_point last_done_;  // under state_mu_
 

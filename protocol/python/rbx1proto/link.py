@@ -1,5 +1,6 @@
 """link.py - an RBX1 link over a serial port (pyserial): requests one at a time or a stream with a window of them in
 flight (selective repeat: requests held ahead of a lost one are not resent), SEQ tracking, HELLO."""
+import binascii
 import time
 
 from . import frame, messages
@@ -14,6 +15,19 @@ PROBE_TYPE = MsgType.NAK  # a probe: a frame of no request type, NAKed UNKNOWN_T
 
 class LinkError(Exception):
     """The firmware did not answer a request after every retransmission (the link is down)."""
+
+
+def has_v3_frame(data):
+    """Whether data holds a frame a protocol version 3 firmware sends (a NAK or a response: CRC-16/CCITT-FALSE,
+    6 bytes of framing). Such a firmware NAKs our HELLO BAD_CRC in frames our decoder cannot read."""
+    for i in range(len(data) - 5):
+        n = data[i + 1]
+        if data[i] != frame.SYNC or n > frame.MAX_PAYLOAD or i + n + 6 > len(data):
+            continue
+        if (data[i + 3] == MsgType.NAK or data[i + 3] & RESPONSE_BIT) and \
+                binascii.crc_hqx(bytes(data[i + 1:i + n + 4]), 0xFFFF) == data[i + n + 4] | (data[i + n + 5] << 8):
+            return True
+    return False
 
 
 class Link:
@@ -45,6 +59,7 @@ class Link:
         self.rejects = 0  # frames from the firmware that failed CRC/length checks
         self.clock = time.monotonic  # the timeout's clock (tests replace it)
         self.last_rx = 0.0  # when bytes last arrived (the inter-byte timeout)
+        self.recent = None  # hello(): the bytes received, searched for a version 3 firmware's frames
 
     def close(self):
         self.ser.close()
@@ -72,7 +87,16 @@ class Link:
     def hello(self):
         """HELLO handshake (send it first after connecting or reconnecting): it starts a new session in the
         firmware's window, and numbering continues after the HELLO's own SEQ."""
-        resp = self.request(MsgType.HELLO, proto_version=messages.PROTO_VERSION)
+        self.recent = bytearray()
+        try:
+            resp = self.request(MsgType.HELLO, proto_version=messages.PROTO_VERSION)
+        except LinkError:
+            if has_v3_frame(self.recent):
+                raise LinkError(f"the firmware speaks protocol version 3 (CRC-16 frames: it NAKs every frame of ours), "
+                                f"this host {messages.PROTO_VERSION}") from None
+            raise
+        finally:
+            self.recent = None
         self.resync = False
         if resp["status"] == Status.OK:
             fw = max(1, resp["window"])
@@ -264,6 +288,8 @@ class Link:
                 self.ser.timeout = max(left, 0)
                 data = self.ser.read(1) if left > 0 else b""
                 data += self.ser.read(self.ser.in_waiting)
+                if data and self.recent is not None:
+                    self.recent = (self.recent + data)[-128:]
                 if data:
                     now = self.clock()
                     events = []

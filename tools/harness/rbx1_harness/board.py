@@ -34,7 +34,12 @@ class Board:
         # Opening a Mega's port (DTR) may have reset it: its stk500v2 bootloader takes a byte arriving in its first
         # 0.83 s as an upload starting, and then stays until 5.2 s pass without one (tools/flashsim/README.md).
         time.sleep(boot_wait)
-        self.info = self.link.hello()
+        try:
+            self.info = self.link.hello()
+        except LinkError as e:
+            expect("protocol version 3" not in str(e), f"{e}: flash the matching firmware: make flash PORT={port} "
+                                                        f"(installed: rbx1-flash {port})")
+            raise
         theirs = self.info["proto_version"]
         expect(self.info["status"] != Status.BAD_VERSION and theirs == messages.PROTO_VERSION,
                f"the firmware speaks protocol version {theirs}, this harness {messages.PROTO_VERSION}: flash the "

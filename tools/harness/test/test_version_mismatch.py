@@ -1,6 +1,8 @@
 """test_version_mismatch.py - a firmware of another protocol version (a fake on a pty that answers HELLO as a
-firmware speaking version PROTO_VERSION + 1 does: BAD_VERSION, its own version) meets the harness and rbx1d: both
-name the two versions and the command that fixes it. Env: RBX1_SOURCE_DIR, RBX1_BIN_DIR."""
+firmware speaking version PROTO_VERSION + 1 does: BAD_VERSION, its own version; and one speaking version 3, whose
+CRC-16 frames NAK our CRC-32 ones) meets the harness and rbx1d: both name the two versions and the command that
+fixes it. Env: RBX1_SOURCE_DIR, RBX1_BIN_DIR."""
+import binascii
 import json
 import os
 import select
@@ -54,9 +56,42 @@ class OtherVersionFirmware:
             os.close(fd)
 
 
+class Version3Firmware(OtherVersionFirmware):
+    """Frames as protocol version 3 did (CRC-16/CCITT-FALSE, 6 bytes): it reads LEN+6 bytes after a SYNC, finds
+    our CRC-32 frame's CRC wrong and NAKs it BAD_CRC with its SEQ, then hunts again after that SYNC."""
+
+    def _run(self):
+        buf = bytearray()
+        while True:
+            ready, _, _ = select.select([self.master, self.stop_r], [], [])
+            if self.stop_r in ready:
+                return
+            buf += os.read(self.master, 256)
+            while True:
+                i = buf.find(frame.SYNC)
+                del buf[:max(i, 0) if i >= 0 else len(buf)]
+                if len(buf) < 3 or len(buf) < buf[1] + 6:
+                    break
+                n, seq = buf[1], buf[2]
+                if buf[1] <= frame.MAX_PAYLOAD and binascii.crc_hqx(bytes(buf[1:n + 4]), 0xFFFF) != \
+                        buf[n + 4] | (buf[n + 5] << 8):
+                    self.hellos += buf[3] == MsgType.HELLO
+                    body = bytes([1, seq, MsgType.NAK, Status.BAD_CRC])
+                    crc = binascii.crc_hqx(body, 0xFFFF)
+                    os.write(self.master, bytes([frame.SYNC]) + body + bytes([crc & 0xFF, crc >> 8]))
+                del buf[:1]
+
+
 @pytest.fixture
 def firmware():
     fw = OtherVersionFirmware()
+    yield fw
+    fw.close()
+
+
+@pytest.fixture
+def firmware_v3():
+    fw = Version3Firmware()
     yield fw
     fw.close()
 
@@ -89,6 +124,43 @@ def test_daemon_names_both_versions_and_the_fix(firmware, tmp_path):
         want = (f"{firmware.port}: firmware speaks protocol version {THEIRS}, this host {messages.PROTO_VERSION}; "
                 f"flash the matching firmware: rbx1-flash {firmware.port} (from a checkout: make flash "
                 f"PORT={firmware.port})")
+        assert link.get("error") == want, link
+    finally:
+        daemon.terminate()
+        assert daemon.wait(timeout=10) == 0
+    assert want in daemon.stderr.read()
+
+
+def test_harness_names_version_3_and_the_fix(firmware_v3):
+    r = subprocess.run([sys.executable, os.path.join(SRC, "tools", "rbx1-harness"), "--port", firmware_v3.port],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1 and firmware_v3.hellos >= 1, r.stdout + r.stderr
+    port = firmware_v3.port
+    want = (f"FAIL  connect: {port}: the firmware speaks protocol version 3 (CRC-16 frames: it NAKs every frame of "
+            f"ours), this host {messages.PROTO_VERSION}: flash the matching firmware: make flash PORT={port} "
+            f"(installed: rbx1-flash {port})")
+    assert want in r.stdout.splitlines(), r.stdout
+
+
+def test_daemon_names_version_3_and_the_fix(firmware_v3, tmp_path):
+    sock = str(tmp_path / "rbx1d.sock")
+    daemon = subprocess.Popen([os.path.join(BIN, "rbx1d"), "--config", os.path.join(SRC, "data", "rbx1.toml"),
+                               "--port", firmware_v3.port, "--socket", sock, "--console", "127.0.0.1:0"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    port = firmware_v3.port
+    want = (f"{port}: firmware speaks protocol version 3 (CRC-16 frames: it NAKs every frame of ours), this host "
+            f"{messages.PROTO_VERSION}; flash the matching firmware: rbx1-flash {port} (from a checkout: make flash "
+            f"PORT={port})")
+    try:
+        link = {}
+        for _ in range(100):  # the daemon's worker opens the link at start and reports why it is not ready
+            r = subprocess.run([os.path.join(BIN, "rbx1"), "status", "--json", "--socket", sock],
+                               capture_output=True, text=True, timeout=20)
+            if r.returncode == 0:
+                link = json.loads(r.stdout.strip().splitlines()[-1])["result"]["link"]
+                if "error" in link:
+                    break
+            time.sleep(0.1)
         assert link.get("error") == want, link
     finally:
         daemon.terminate()
