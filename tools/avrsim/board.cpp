@@ -3,13 +3,11 @@
 
 #include <fcntl.h>
 #include <sys/ioctl.h>
-#include <termios.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstdarg>
 #include <cstdio>
-#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <iterator>
@@ -31,8 +29,6 @@ namespace {
 
 constexpr uint32_t kFrequency = 16000000;
 constexpr size_t kEepromSize = 4096;
-// The pty is polled this often (simulated cycles, 64 us): a byte the host writes reaches the UART that late at most.
-constexpr avr_cycle_count_t kPumpCycles = 1024;
 
 // simavr logs "info" lines on stdout, where our first line must be the pty path: everything goes to stderr.
 void log_to_stderr(avr_t* avr, const int level, const char* format, va_list ap) {
@@ -102,60 +98,32 @@ bool Board::open(const std::string& elf, const std::string& eeprom_file, bool ow
     }
   }
 
-  if (!own_bridge) {
-    {
-      QuietStdout quiet;
-      uart_pty_init(avr_, &pty_);
-      uart_pty_connect(&pty_, '0');
-    }
-    if (!pty_.port[0].s) {
-      error = "cannot create a pty";
-      return false;
-    }
-    unlink("/tmp/simavr-uart0");  // uart_pty's convenience symlink; several simulators would fight over it
-    pty_name_ = pty_.port[0].slavename;
-  } else {
-    // The benchmarks' bridge, in this thread: simavr's uart_pty moves bytes in a thread of its own, where a
-    // loaded machine kept the firmware's answers while simulated time ran on (--hold-for-host saw nothing
+  if (own_bridge) {
+    // The benchmarks' bridge, in this thread (tools/simpty): simavr's uart_pty moves bytes in a thread of its own,
+    // where a loaded machine kept the firmware's answers while simulated time ran on (--hold-for-host saw nothing
     // unread), and its writes are unchecked.
-    master_fd_ = posix_openpt(O_RDWR | O_NOCTTY | O_NONBLOCK);
-    char name[128];
-    if (master_fd_ < 0 || grantpt(master_fd_) != 0 || unlockpt(master_fd_) != 0 ||
-        ptsname_r(master_fd_, name, sizeof name) != 0) {
-      error = std::string("cannot create a pty: ") + std::strerror(errno);
-      return false;
-    }
-    pty_name_ = name;
+    bridge_ = std::make_unique<simpty::PtyBridge>();
+    if (!bridge_->open(avr_, '0', error)) return false;
+    pty_name_ = bridge_->path();
+    uart0_ = bridge_->uart();
+    drive_inputs(true);
+    return true;
   }
-  // simavr usleep()s whenever the firmware polls UCSR0A with nothing to do; that would break the pacing. Its
-  // copy of the firmware's output on our stdout goes too (uart_pty turns it off itself).
-  uint32_t flags = 0;
-  avr_ioctl(avr_, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
-  flags &= ~(AVR_UART_FLAG_POLL_SLEEP | AVR_UART_FLAG_STDIO);
-  avr_ioctl(avr_, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
-  slave_fd_ = ::open(pty_name_.c_str(), O_RDWR | O_NOCTTY);
-  if (slave_fd_ < 0) {
-    error = pty_name_ + ": " + std::strerror(errno);
+  {
+    QuietStdout quiet;
+    uart_pty_init(avr_, &pty_);
+    uart_pty_connect(&pty_, '0');
+  }
+  if (!pty_.port[0].s) {
+    error = "cannot create a pty";
     return false;
   }
-  // Raw from the start: a cooked slave would echo the firmware's bytes back into its UART before a client
-  // configures the port.
-  termios tio{};
-  tcgetattr(slave_fd_, &tio);
-  cfmakeraw(&tio);
-  tcsetattr(slave_fd_, TCSANOW, &tio);
-  for (avr_io_t* io = avr_->io_port; io; io = io->next)
-    if (!std::strcmp(io->kind, "uart") && reinterpret_cast<avr_uart_t*>(io)->name == '0')
-      uart0_ = reinterpret_cast<avr_uart_t*>(io);
+  unlink("/tmp/simavr-uart0");  // uart_pty's convenience symlink; several simulators would fight over it
+  pty_name_ = pty_.port[0].slavename;
+  uart0_ = simpty::prepare_uart(avr_, '0');
+  slave_fd_ = simpty::open_raw_slave(pty_name_, error);
+  if (slave_fd_ < 0) return false;
   drive_inputs(true);
-  if (!own_bridge) return true;
-  uart_in_ = avr_io_getirq(avr_, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
-  avr_irq_register_notify(avr_io_getirq(avr_, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT), &Board::on_uart_output,
-                          this);
-  avr_irq_register_notify(avr_io_getirq(avr_, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XON), &Board::on_uart_xon, this);
-  avr_irq_register_notify(avr_io_getirq(avr_, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XOFF), &Board::on_uart_xoff,
-                          this);
-  avr_cycle_timer_register(avr_, kPumpCycles, &Board::on_pump, this);
   return true;
 }
 
@@ -238,83 +206,27 @@ bool Board::save_eeprom(std::string& error) {
 }
 
 int Board::host_unread() const {
+  if (bridge_) return bridge_->host_unread();
   int n = 0;
   if (slave_fd_ < 0 || ioctl(slave_fd_, FIONREAD, &n) != 0) return 0;
   return n;
 }
 
 bool Board::host_pending() const {
+  if (bridge_) return bridge_->host_pending();
   int n = 0;
-  if (master_fd_ < 0) {
-    const uart_pty_port_t& p = pty_.port[0];
-    if (p.s >= 0 && ioctl(p.s, FIONREAD, &n) == 0 && n > 0) return true;
-    // Read from the bridge's thread without its lock: a stale answer only holds or runs one more slice.
-    return p.buffer_done < p.buffer_len || p.in.read != p.in.write;
-  }
-  if (ioctl(master_fd_, FIONREAD, &n) == 0 && n > 0) return true;
-  return in_done_ < in_.size();
-}
-
-void Board::on_uart_output(avr_irq_t*, uint32_t value, void* param) {
-  auto* b = static_cast<Board*>(param);
-  b->out_.push_back(static_cast<uint8_t>(value));
-  b->last_out_ = b->avr_->cycle;
-  if (b->out_.size() >= 64) b->flush_out();
-}
-
-void Board::on_uart_xon(avr_irq_t*, uint32_t, void* param) {
-  auto* b = static_cast<Board*>(param);
-  b->xon_ = true;
-  b->feed();
-}
-
-void Board::on_uart_xoff(avr_irq_t*, uint32_t, void* param) { static_cast<Board*>(param)->xon_ = false; }
-
-avr_cycle_count_t Board::on_pump(avr_t*, avr_cycle_count_t when, void* param) {
-  auto* b = static_cast<Board*>(param);
-  b->pump_output();
-  b->take_input();
-  return when + kPumpCycles;
-}
-
-void Board::flush_out() {
-  if (out_.empty() || master_fd_ < 0) return;
-  ssize_t n = ::write(master_fd_, out_.data(), out_.size());
-  if (n > 0) out_.erase(out_.begin(), out_.begin() + n);  // the rest when the host has read (EAGAIN: pty full)
-}
-
-void Board::pump_output() {
-  // Written a burst at a time, once the line has been quiet for two byte times (the end of a frame): a host
-  // woken for every byte would spend its time in wake-ups (under load: tens of ms per answer).
-  const avr_cycle_count_t quiet = uart0_ ? 2 * uart0_->cycles_per_byte : 2 * kPumpCycles;
-  if (!out_.empty() && avr_->cycle - last_out_ >= quiet) flush_out();
-}
-
-void Board::feed() {
-  // The UART says XOFF (its input FIFO is full) from inside the raise; XON again once the firmware reads.
-  while (xon_ && in_done_ < in_.size()) avr_raise_irq(uart_in_, in_[in_done_++]);
-  if (in_done_ == in_.size()) {
-    in_.clear();
-    in_done_ = 0;
-  }
+  const uart_pty_port_t& p = pty_.port[0];
+  if (p.s >= 0 && ioctl(p.s, FIONREAD, &n) == 0 && n > 0) return true;
+  // Read from the bridge's thread without its lock: a stale answer only holds or runs one more slice.
+  return p.buffer_done < p.buffer_len || p.in.read != p.in.write;
 }
 
 void Board::pump() {
-  if (master_fd_ < 0) return;  // uart_pty's thread moves the bytes
-  // A reset (ours, or the firmware's watchdog) clears simavr's cycle timers: arm the pump again.
-  if (!avr_cycle_timer_status(avr_, &Board::on_pump, this))
-    avr_cycle_timer_register(avr_, kPumpCycles, &Board::on_pump, this);
-  pump_output();
-  take_input();
+  if (bridge_) bridge_->pump();  // else uart_pty's thread moves the bytes
 }
 
-void Board::take_input() {
-  if (in_.size() - in_done_ < 4096) {
-    uint8_t buf[512];
-    ssize_t n = master_fd_ >= 0 ? ::read(master_fd_, buf, sizeof buf) : -1;
-    if (n > 0) in_.insert(in_.end(), buf, buf + n);
-  }
-  feed();
+void Board::flush() {
+  if (bridge_) bridge_->flush();
 }
 
 }  // namespace rbx1::avrsim

@@ -4,10 +4,11 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <string>
-#include <vector>
 
 #include "pinmap.hpp"
+#include "pty_bridge.hpp"
 
 extern "C" {
 #include "avr_uart.h"
@@ -20,7 +21,8 @@ namespace rbx1::avrsim {
 class Board {
  public:
   // Loads the ELF and bridges UART0 to a pty: through simavr's uart_pty (a thread of its own), or with
-  // own_bridge (benchmarks: --hold-for-host) through pump() in the simulation's thread. Returns false with error set.
+  // own_bridge (benchmarks: --hold-for-host) through pump() in the simulation's thread (tools/simpty). Returns false
+  // with error set.
   bool open(const std::string& elf, const std::string& eeprom_file, bool own_bridge, std::string& error);
   avr_t* avr() const { return avr_; }
   const char* pty_path() const { return pty_name_.c_str(); }
@@ -37,10 +39,10 @@ class Board {
   int host_unread() const;
   // Whether bytes the host wrote still wait for the firmware's UART (in the pty or the bridge's buffer).
   bool host_pending() const;
-  // own_bridge: moves bytes between the pty and UART0; the run loop calls it between slices. A burst the firmware
-  // sends is on the pty two byte times after its last byte, a byte the host writes reaches the UART within 1024
-  // cycles of simulated time (a cycle timer, armed again here after a reset cleared it).
+  // own_bridge: moves bytes between the pty and UART0; the run loop calls it between slices (simpty::PtyBridge).
   void pump();
+  // own_bridge: writes out what the firmware sent and the host has not got yet (at exit).
+  void flush();
   // Writes the EEPROM to the --eeprom file (atomic rename). No-op without one.
   bool save_eeprom(std::string& error);
 
@@ -54,23 +56,10 @@ class Board {
 
   avr_t* avr_ = nullptr;
   ::avr_uart_t* uart0_ = nullptr;
-  static void on_uart_output(avr_irq_t* irq, uint32_t value, void* param);
-  static void on_uart_xon(avr_irq_t* irq, uint32_t value, void* param);
-  static void on_uart_xoff(avr_irq_t* irq, uint32_t value, void* param);
-  static avr_cycle_count_t on_pump(avr_t* avr, avr_cycle_count_t when, void* param);
-  void feed();
-  void take_input();
-  void flush_out();
-  void pump_output();
-  uart_pty_t pty_{};    // without own_bridge
-  int master_fd_ = -1;  // own_bridge: the pty's master, non-blocking
-  int slave_fd_ = -1;   // held open so the pty never reports EIO while no host has the port open
+  uart_pty_t pty_{};                           // without own_bridge
+  int slave_fd_ = -1;                          // held open so the pty never reports EIO to uart_pty's reader thread
+  std::unique_ptr<simpty::PtyBridge> bridge_;  // own_bridge
   std::string pty_name_;
-  avr_irq_t* uart_in_ = nullptr;
-  bool xon_ = false;                 // the UART takes input (receiver on, input FIFO not full)
-  std::vector<uint8_t> in_, out_;    // host -> UART not yet taken, UART -> host not yet written
-  size_t in_done_ = 0;
-  avr_cycle_count_t last_out_ = 0;   // when the firmware last sent a byte
   std::string eeprom_file_;
   bool estop_ = false;
   std::array<bool, 6> limits_{};

@@ -140,6 +140,7 @@ struct Estop {
 [[noreturn]] void finish(Board& board, const Probes& probes, Trace* trace, const std::string& json_path, int code) {
   std::string err;
   if (trace) trace->flush();
+  board.flush();
   if (!board.save_eeprom(err)) std::fprintf(stderr, "rbx1-avrsim: %s\n", err.c_str());
   if (!json_path.empty()) write_json(probes, json_path);
   std::fflush(stdout);

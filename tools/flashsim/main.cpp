@@ -1,8 +1,6 @@
 // main.cpp - rbx1-avrboard: an Arduino Mega 2560 as it leaves the factory, under simavr: Debian's stk500v2
 // bootloader in the boot section, flash and EEPROM kept in files, UART0 on a pty with the auto-reset modelled.
-#include <fcntl.h>
 #include <sys/resource.h>
-#include <sys/stat.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -11,7 +9,6 @@
 #include <csignal>
 #include <cstdarg>
 #include <cstdio>
-#include <cstring>
 #include <ctime>
 #include <fstream>
 #include <iterator>
@@ -25,11 +22,11 @@ extern "C" {
 #include "avr_uart.h"
 #include "sim_avr.h"
 #include "sim_io.h"
-#include "uart_pty.h"
 }
 
 #include "autoreset.hpp"
 #include "flash_image.hpp"
+#include "pty_bridge.hpp"
 
 namespace {
 
@@ -128,52 +125,30 @@ int main(int argc, char** argv) {
   }
   if (!eeprom_file.empty()) load_eeprom(avr, eeprom_file);
 
-  uart_pty_t pty{};
-  {
-    // uart_pty prints progress on stdout, where our first line must be the pty path.
-    std::fflush(stdout);
-    const int saved = dup(STDOUT_FILENO), null = ::open("/dev/null", O_WRONLY);
-    dup2(null, STDOUT_FILENO);
-    uart_pty_init(avr, &pty);
-    uart_pty_connect(&pty, '0');
-    std::fflush(stdout);
-    dup2(saved, STDOUT_FILENO);
-    close(null);
-    close(saved);
-  }
-  unlink("/tmp/simavr-uart0");  // uart_pty's convenience symlink; several simulators would fight over it
-  uint32_t flags = 0;           // no usleep() while the program polls UCSR0A: pacing is done here
-  avr_ioctl(avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
-  flags &= ~AVR_UART_FLAG_POLL_SLEEP;
-  avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
-  avr_uart_t* uart0 = nullptr;
-  for (avr_io_t* io = avr->io_port; io; io = io->next)
-    if (!std::strcmp(io->kind, "uart") && reinterpret_cast<avr_uart_t*>(io)->name == '0')
-      uart0 = reinterpret_cast<avr_uart_t*>(io);
-  // Our own open of the slave, raw, kept for the run: simavr's reader thread reads EIO forever when no slave is
-  // open, and the auto-reset model reads the port's termios through it.
-  const char* slave = pty.port[0].slavename;
-  const int slave_fd = ::open(slave, O_RDWR | O_NOCTTY);
+  // UART0 on a pty, bridged in this thread (tools/simpty: simavr's uart_pty thread lost avrdude's exchanges under
+  // load). Our own open of the slave is kept for the run: the auto-reset model reads the port's termios through it.
+  rbx1::simpty::PtyBridge bridge;
   AutoReset autoreset;
-  if (!uart0 || slave_fd < 0 || !autoreset.open(slave, slave_fd, error)) {
-    std::fprintf(stderr, "rbx1-avrboard: %s\n", error.empty() ? "cannot bridge UART0 to a pty" : error.c_str());
+  if (!bridge.open(avr, '0', error) || !autoreset.open(bridge.path().c_str(), bridge.slave_fd(), error)) {
+    std::fprintf(stderr, "rbx1-avrboard: %s\n", error.c_str());
     return 2;
   }
+  avr_uart_t* uart0 = bridge.uart();
   termios tio{};
-  tcgetattr(slave_fd, &tio);
-  cfmakeraw(&tio);  // raw: a cooked slave echoes the board's bytes back
+  tcgetattr(bridge.slave_fd(), &tio);
   tio.c_cflag |= HUPCL;  // as a new serial tty has it (a new pty has it clear)
-  tcsetattr(slave_fd, TCSANOW, &tio);
+  tcsetattr(bridge.slave_fd(), TCSANOW, &tio);
 
   struct sigaction sa {};
   sa.sa_handler = on_signal;
   sigaction(SIGTERM, &sa, nullptr);
   sigaction(SIGINT, &sa, nullptr);
   signal(SIGPIPE, SIG_IGN);
-  std::printf("%s\n", slave);
+  std::printf("%s\n", bridge.path().c_str());
   std::fflush(stdout);
 
   reset_board(avr);  // power on into the boot section (BOOTRST)
+  bridge.pump();
   const double started = now_s();
   double t0 = started, sim_s = 0;  // simulated seconds since start (avr->cycle restarts at every reset)
   const avr_cycle_count_t slice = kFrequency / 4000;  // 250 simulated us between looks at the outside world
@@ -195,6 +170,7 @@ int main(int argc, char** argv) {
     sim_s += hung ? static_cast<double>(slice) / kFrequency
                   : static_cast<double>(avr->cycle >= start ? avr->cycle - start : avr->cycle) / kFrequency;
     set_uart_timing(avr, uart0);
+    bridge.pump();
     const bool boot_now = avr->pc >= kBootStart;
     if (in_boot && !boot_now)
       std::fprintf(stderr, "rbx1-avrboard: %.3f s: bootloader left, application running\n", sim_s);
@@ -204,6 +180,7 @@ int main(int argc, char** argv) {
     if (autoreset.take_reset()) {
       save_eeprom(avr, eeprom_file);
       reset_board(avr);
+      bridge.pump();
       in_boot = true;
       hung = false;
       std::fprintf(stderr, "rbx1-avrboard: %.3f s: reset, in the bootloader\n", sim_s);
@@ -225,7 +202,8 @@ int main(int argc, char** argv) {
       }
     }
   }
-  // Not uart_pty_stop(): it joins a reader thread that never returns. Keep the files, then leave.
+  // Keep the files, write out what the board sent, then leave.
+  bridge.flush();
   if (!save_eeprom(avr, eeprom_file)) std::fprintf(stderr, "rbx1-avrboard: %s: cannot save the EEPROM\n", eeprom_file.c_str());
   rbx1::flashsim::sync_flash(avr);
   std::fprintf(stderr, "rbx1-avrboard: %.3f s simulated in %.3f s\n", sim_s, now_s() - started);

@@ -149,12 +149,15 @@ def test_install_flash_remove_purge(deb, machine, tmp_path):
     assert r.returncode == 2 and r.stderr.startswith("usage: rbx1-flash PORT"), r.stderr
 
     # rbx1-flash uploads the packaged image to the simulated board through its bootloader.
-    board = subprocess.Popen([AVRBOARD, "--flash", str(tmp_path / "flash.bin"), "--max-seconds", "120"],
-                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    # The board outlives the upload's own deadline; its log (resets, boot events) goes with a failure.
+    log = tmp_path / "board.log"
+    with open(log, "w") as err:
+        board = subprocess.Popen([AVRBOARD, "--flash", str(tmp_path / "flash.bin"), "--max-seconds", "200"],
+                                 stdout=subprocess.PIPE, stderr=err, text=True)
     try:
         port = board.stdout.readline().strip()
-        r = run("/usr/bin/rbx1-flash", port, check=False)
-        assert r.returncode == 0 and "bytes of flash verified" in r.stderr, r.stderr
+        r = run("/usr/bin/rbx1-flash", port, check=False, timeout=150)
+        assert r.returncode == 0 and "bytes of flash verified" in r.stderr, r.stderr + "\nthe board's log:\n" + log.read_text()
     finally:
         board.terminate()
         board.wait(10)
