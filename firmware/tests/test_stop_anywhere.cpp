@@ -48,7 +48,7 @@ TEST_P(StopAnywhere, ComesToRestWhereverTheStopFalls) {
     bool grip = false;
     while (sim::board().now - t0 < (uint64_t)stop_ms * sim::kTicksPerMs) {
       // A gripper entry in the middle of the path, as a pick queues one between its descent and its lift.
-      uint8_t st = k >= p.size()                ? RBX1_QUEUE_FULL
+      uint8_t st = k >= p.size()                ? (uint8_t)RBX1_QUEUE_FULL
                    : k == p.size() / 3 && !grip ? gripper(1500, 150)
                                                 : move(std::vector<int32_t>(p[k].begin(), p[k].end()), 0);
       if (st == RBX1_OK && k == p.size() / 3 && !grip) {
