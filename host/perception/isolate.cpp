@@ -135,32 +135,37 @@ bool drop_shade_shelf(uchar* cbuf, const uchar* obuf, int W, int H, const int* h
 // locally (folds, vignetting) can lie well away from it beside one object (coins.png: cloth 105 under a surface
 // of 120), and an object's faint relief then falls below the low threshold, denting its outline. The table's
 // own level beside the object: the median contrast (in the object's polarity) over the unlabelled pixels 3 to
-// 8 px outside the component. When it lies on the far side of the surface by over a quarter of the low threshold, the
-// component is regrown by hysteresis against that level (unlabelled pixels above the low threshold, connected
-// to it, within a window of half its size around it; the labels and box follow) and the level is returned, to
-// be taken off the object's contrast; otherwise 0. A regrowth reaching the window's edge (the table itself above
-// the low threshold against that level, or the frame's edge) is not kept.
+// 8 px outside the component's box. When it lies on the far side of the surface by over a quarter of the low
+// threshold (and 4 levels), the component is regrown by hysteresis against that level (unlabelled pixels above
+// the low threshold, connected to it, within a window of a quarter of its size, at least 8 px, around it; the
+// labels and box follow) and the level is returned, to be taken off the object's contrast; otherwise 0. A
+// regrowth reaching the window's edge (the table itself above the low threshold against that level, or the
+// frame's edge) is not kept.
 int local_table(const Contrast& con, cv::Mat& labels, int label, int sign, double low, cv::Rect& box) {
   if (!con.global_model || sign == 0) return 0;
   const cv::Rect frame(0, 0, labels.cols, labels.rows);
-  const int m = std::max(8, std::max(box.width, box.height) / 2);
-  const cv::Rect r = cv::Rect(box.x - m, box.y - m, box.width + 2 * m, box.height + 2 * m) & frame;
-  const cv::Mat lab = labels(r), g = con.gray(r), bg = con.background(r);
-  cv::Mat own = lab == label, near, far;
-  dilate_square(own, near, 2);
-  dilate_square(own, far, 8);
+  // The ring: the unlabelled pixels of a frame 3 to 8 px outside the component's box (its corners are table
+  // too, a few px further out on a round object).
+  const cv::Rect q = cv::Rect(box.x - 8, box.y - 8, box.width + 16, box.height + 16) & frame;
+  const int x0 = box.x - 2, x1 = box.br().x + 2, y0 = box.y - 2, y1 = box.br().y + 2;
   int hist[511] = {}, n = 0;
-  for (int y = 0; y < r.height; ++y) {
-    const int* lr = lab.ptr<int>(y);
-    const uchar *gr = g.ptr<uchar>(y), *br = bg.ptr<uchar>(y), *nr = near.ptr<uchar>(y), *fr = far.ptr<uchar>(y);
-    for (int x = 0; x < r.width; ++x)
-      if (fr[x] && !nr[x] && lr[x] == 0) hist[255 + sign * (int(gr[x]) - int(br[x]))]++, ++n;
+  for (int y = q.y; y < q.br().y; ++y) {
+    const int* lr = labels.ptr<int>(y);
+    const uchar *gr = con.gray.ptr<uchar>(y), *br = con.background.ptr<uchar>(y);
+    const bool band = y < y0 || y >= y1;
+    for (int x = q.x; x < q.br().x; ++x) {
+      if (!band && x >= x0 && x < x1) x = x1 - 1;  // the box and its 2 px margin
+      else if (lr[x] == 0) hist[255 + sign * (int(gr[x]) - int(br[x]))]++, ++n;
+    }
   }
   if (n < 20) return 0;
   int t = 0;
   for (int acc = 0; t < 511 && (acc += hist[t]) * 2 < n; ++t) {}
   const int table = t - 255;
-  if (-table <= 0.25 * low) return 0;
+  if (-table <= std::max(0.25 * low, 4.0)) return 0;
+  const int m = std::max(8, std::max(box.width, box.height) / 4);
+  const cv::Rect r = cv::Rect(box.x - m, box.y - m, box.width + 2 * m, box.height + 2 * m) & frame;
+  const cv::Mat lab = labels(r), g = con.gray(r), bg = con.background(r);
   // Hysteresis against the local level: the component and the unlabelled pixels above the low threshold.
   cv::Mat cand(r.size(), CV_8U), comp;
   for (int y = 0; y < r.height; ++y) {
