@@ -131,12 +131,78 @@ bool drop_shade_shelf(uchar* cbuf, const uchar* obuf, int W, int H, const int* h
   return true;
 }
 
+// The automatic background's global surface is one quadratic over the whole table: a cloth whose level drifts
+// locally (folds, vignetting) can lie well away from it beside one object (coins.png: cloth 105 under a surface
+// of 120), and an object's faint relief then falls below the low threshold, denting its outline. The table's
+// own level beside the object: the median contrast (in the object's polarity) over the unlabelled pixels 3 to
+// 8 px outside the component's box. When it lies on the far side of the surface by over a quarter of the low
+// threshold (and 4 levels), the component is regrown by hysteresis against that level (unlabelled pixels above
+// the low threshold, connected to it, within a window of a quarter of its size, at least 8 px, around it; the
+// labels and box follow) and the level is returned, to be taken off the object's contrast; otherwise 0. A
+// regrowth reaching the window's edge (the table itself above the low threshold against that level, or the
+// frame's edge) is not kept.
+int local_table(const Contrast& con, cv::Mat& labels, int label, int sign, double low, cv::Rect& box) {
+  if (!con.global_model || sign == 0) return 0;
+  const cv::Rect frame(0, 0, labels.cols, labels.rows);
+  // The ring: the unlabelled pixels of a frame 3 to 8 px outside the component's box (its corners are table
+  // too, a few px further out on a round object).
+  const cv::Rect q = cv::Rect(box.x - 8, box.y - 8, box.width + 16, box.height + 16) & frame;
+  const int x0 = box.x - 2, x1 = box.br().x + 2, y0 = box.y - 2, y1 = box.br().y + 2;
+  int hist[511] = {}, n = 0;
+  for (int y = q.y; y < q.br().y; ++y) {
+    const int* lr = labels.ptr<int>(y);
+    const uchar *gr = con.gray.ptr<uchar>(y), *br = con.background.ptr<uchar>(y);
+    const bool band = y < y0 || y >= y1;
+    for (int x = q.x; x < q.br().x; ++x) {
+      if (!band && x >= x0 && x < x1) x = x1 - 1;  // the box and its 2 px margin
+      else if (lr[x] == 0) hist[255 + sign * (int(gr[x]) - int(br[x]))]++, ++n;
+    }
+  }
+  if (n < 20) return 0;
+  int t = 0;
+  for (int acc = 0; t < 511 && (acc += hist[t]) * 2 < n; ++t) {}
+  const int table = t - 255;
+  if (-table <= std::max(0.25 * low, 4.0)) return 0;
+  const int m = std::max(8, std::max(box.width, box.height) / 4);
+  const cv::Rect r = cv::Rect(box.x - m, box.y - m, box.width + 2 * m, box.height + 2 * m) & frame;
+  const cv::Mat lab = labels(r), g = con.gray(r), bg = con.background(r);
+  // Hysteresis against the local level: the component and the unlabelled pixels above the low threshold.
+  cv::Mat cand(r.size(), CV_8U), comp;
+  for (int y = 0; y < r.height; ++y) {
+    const int* lr = lab.ptr<int>(y);
+    const uchar *gr = g.ptr<uchar>(y), *br = bg.ptr<uchar>(y);
+    uchar* c = cand.ptr<uchar>(y);
+    for (int x = 0; x < r.width; ++x)
+      c[x] = uchar(lr[x] == label || (lr[x] == 0 && sign * (int(gr[x]) - int(br[x])) - table > low));
+  }
+  const int nc = cv::connectedComponents(cand, comp, 8, CV_32S);
+  std::vector<char> keep(size_t(nc), 0);
+  for (int y = 0; y < r.height; ++y) {
+    const int* lr = lab.ptr<int>(y);
+    const int* cr = comp.ptr<int>(y);
+    for (int x = 0; x < r.width; ++x)
+      if (lr[x] == label) keep[size_t(cr[x])] = 1;
+  }
+  cv::Mat grown(r.size(), CV_8U, cv::Scalar(0));
+  for (int y = 0; y < r.height; ++y) {
+    const int* cr = comp.ptr<int>(y);
+    uchar* gw = grown.ptr<uchar>(y);
+    for (int x = 0; x < r.width; ++x) gw[x] = uchar(-int(cr[x] > 0 && keep[size_t(cr[x])]));
+  }
+  const cv::Rect gb = cv::boundingRect(grown);
+  if (gb.x == 0 || gb.y == 0 || gb.br().x == r.width || gb.br().y == r.height) return 0;
+  cv::Mat lw = labels(r);
+  lw.setTo(label, grown);
+  box = (gb + r.tl()) | box;
+  return table;
+}
+
 // Soft layer of one component in one fused pass: s = (c - lo) / (hi - lo) clamped, with lo = 2 sigma and
 // hi = level - 2 sigma around the object's contrast level (median over its pixels), so noise leaves the
 // interior at 1 and the table at 0 while the anti-aliased edge keeps its covered fraction (half level =
 // level / 2). Pixels of other objects are 0.
 void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign, cv::Rect roi, double threshold,
-                Layer& layer, bool shade_shelf = false) {
+                Layer& layer, bool shade_shelf = false, int table = 0) {
   const cv::Mat lab = labels(roi), g = con.gray(roi), bg = con.background(roi);
   const int W = roi.width, H = roi.height;
   layer.sign = sign;
@@ -158,9 +224,9 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign,
     uchar* orow = obuf.data() + size_t(y) * size_t(W);
     uchar* zrow = zbuf.data() + size_t(y) * size_t(W);
     if (sign > 0) {
-      for (int x = 0; x < W; ++x) cr[x] = uchar(std::max(int(gr[x]) - int(br[x]), 0));
+      for (int x = 0; x < W; ++x) cr[x] = uchar(std::clamp(int(gr[x]) - int(br[x]) - table, 0, 255));
     } else if (sign < 0) {
-      for (int x = 0; x < W; ++x) cr[x] = uchar(std::max(int(br[x]) - int(gr[x]), 0));
+      for (int x = 0; x < W; ++x) cr[x] = uchar(std::clamp(int(br[x]) - int(gr[x]) - table, 0, 255));
     } else {
       for (int x = 0; x < W; ++x) cr[x] = uchar(std::abs(int(gr[x]) - int(br[x])));
     }
@@ -402,7 +468,9 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
   for (const Cand& k : keep) {
     Layer layer;
     const int sg = out.sign[size_t(k.label)];
-    make_layer(con, out.labels, k.label, sg, grow(k.box), out.threshold, layer, shelf);
+    cv::Rect kbox = k.box;
+    const int table = local_table(con, out.labels, k.label, sg, low, kbox);
+    make_layer(con, out.labels, k.label, sg, grow(kbox), out.threshold, layer, shelf, table);
     // Near objects joined by their blurred edges at the low threshold come apart at the half level:
     // each piece big enough becomes an object of its own, with a new label.
     int big = 0;
@@ -438,7 +506,7 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
         lab.setTo(id, body);
         cv::Rect box = cv::boundingRect(body) + layer.roi.tl();
         Layer piece;
-        make_layer(con, out.labels, id, sg, grow(box), out.threshold, piece, shelf);
+        make_layer(con, out.labels, id, sg, grow(box), out.threshold, piece, shelf, table);
         piece.pieces.clear();
         piece.touching = true;
         if (cv::countNonZero(piece.inside) >= opt.min_area_px) out.layers.push_back(std::move(piece));
@@ -457,7 +525,7 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
       lab.setTo(id, mask & (lab == k.label));
       cv::Rect box = cv::boundingRect(p.second) + layer.roi.tl();
       Layer piece;
-      make_layer(con, out.labels, id, sg, grow(box), out.threshold, piece, shelf);
+      make_layer(con, out.labels, id, sg, grow(box), out.threshold, piece, shelf, table);
       piece.pieces.clear();
       if (cv::countNonZero(piece.inside) >= opt.min_area_px) pieces.push_back(std::move(piece));
     }

@@ -8,6 +8,7 @@
 
 #include "detector.hpp"
 #include "image_io.hpp"
+#include "isolate.hpp"
 #include "shapes.hpp"
 
 namespace rbx1::vision {
@@ -233,6 +234,38 @@ TEST(Isolation, NearObjectsStaySeparate) {
   s.noise_sigma = 3, s.blur_sigma = 0.8;
   // Two bars 3 px apart.
   EXPECT_EQ(count(render(s, {rectangle({250, 240}, 120, 40, 0), rectangle({250, 283}, 120, 40, 0)}), Polarity::Auto), 2);
+}
+
+// The automatic background's global surface (one smooth level over the whole table) lies above a darker patch
+// of cloth around a light disc, whose faint relief on one side (a segment beyond 0.6 of its radius) is then
+// below the low threshold against the surface but well above the patch: the outline keeps the whole disc, as
+// the patch's own level beside it has it, not a disc with that side cut off (14 % of its area).
+TEST(Isolation, LocalTableLevelBesideAnObjectKeepsItsFaintRelief) {
+  cv::Mat gray(300, 400, CV_8U, cv::Scalar(60));
+  cv::circle(gray, {200, 150}, 80, cv::Scalar(36), cv::FILLED);  // the darker patch: 24 below the surface
+  const cv::Point c(200, 150);
+  const int r = 30;
+  for (int y = c.y - r; y <= c.y + r; ++y)
+    for (int x = c.x - r; x <= c.x + r; ++x)
+      if ((x - c.x) * (x - c.x) + (y - c.y) * (y - c.y) <= r * r)
+        gray.at<uchar>(y, x) = x > c.x + 0.6 * r ? 64 : 86;  // relief 28 above the patch, body 50
+  const int disc = cv::countNonZero(gray == 86) + cv::countNonZero(gray == 64);
+  Contrast con;
+  con.gray = gray;
+  con.background = cv::Mat(gray.size(), CV_8U, cv::Scalar(60));
+  con.sign = +1, con.noise_sigma = 2, con.global_model = true, con.modelled = true;
+  IsolationOptions opt;
+  Isolation iso;
+  std::string e;
+  ASSERT_TRUE(isolate(con, opt, iso, e)) << e;
+  ASSERT_EQ(iso.layers.size(), 1u);
+  const Layer& l = iso.layers[0];
+  EXPECT_EQ(l.sign, +1);
+  const int inside = cv::countNonZero(l.inside);
+  EXPECT_GE(inside, disc * 97 / 100) << "of " << disc;
+  EXPECT_LE(inside, disc);
+  const cv::Rect box = cv::boundingRect(l.inside) + l.roi.tl();
+  EXPECT_EQ(box, cv::Rect(c.x - r, c.y - r, 2 * r + 1, 2 * r + 1));
 }
 
 }  // namespace
