@@ -28,6 +28,11 @@ constexpr auto kStreamPoll = std::chrono::milliseconds(1000);
 // A jog still running after kHoldAfter streams its reply: a space every kPresencePoll until the final line (JSON
 // allows leading white space). A write that fails means the page or client went away: the jog's dead-man STOP.
 constexpr auto kHoldAfter = std::chrono::milliseconds(300);
+// A page whose last event stream closed counts as open this long: the page replaces its stream (connectEvents() on
+// a token change closes one and opens the next), and a jog of that page must not stop in between (e2e_console:
+// "the page of a jog went away" in the same millisecond as the jog's request). A page that is gone stops its jog
+// this much later.
+constexpr auto kPageReconnectGrace = std::chrono::milliseconds(1000);
 constexpr auto kPresencePoll = std::chrono::milliseconds(50);
 // A page names itself (?page=ID on its event stream, X-RBX1-Page on its requests): its jogs last while that stream
 // is open. A browser closing the tab drops the stream; the jog's own request it may keep reading to the end.
@@ -107,24 +112,35 @@ struct Console::Impl {
   int port = 0;
   json info;
   std::mutex pages_mutex;
-  std::map<std::string, int> pages;  // page id -> its open event streams
+  struct PageStreams {
+    int open = 0;
+    std::chrono::steady_clock::time_point closed_at;  // when the last one closed (open == 0)
+  };
+  std::map<std::string, PageStreams> pages;  // page id -> its event streams
 
   // Counts one open event stream of a page while it lives.
   struct PageStream {
     PageStream(Impl& impl, std::string id) : impl_(impl), id_(std::move(id)) {
       std::lock_guard lock(impl_.pages_mutex);
-      ++impl_.pages[id_];
+      const auto now = std::chrono::steady_clock::now();
+      for (auto it = impl_.pages.begin(); it != impl_.pages.end();)  // pages gone for good
+        it = it->second.open == 0 && now - it->second.closed_at >= kPageReconnectGrace ? impl_.pages.erase(it)
+                                                                                        : std::next(it);
+      ++impl_.pages[id_].open;
     }
     ~PageStream() {
       std::lock_guard lock(impl_.pages_mutex);
-      if (--impl_.pages[id_] <= 0) impl_.pages.erase(id_);
+      PageStreams& p = impl_.pages[id_];
+      if (--p.open <= 0) p.open = 0, p.closed_at = std::chrono::steady_clock::now();
     }
     Impl& impl_;
     std::string id_;
   };
   bool page_open(const std::string& id) {
     std::lock_guard lock(pages_mutex);
-    return pages.count(id) > 0;
+    auto it = pages.find(id);
+    if (it == pages.end()) return false;
+    return it->second.open > 0 || std::chrono::steady_clock::now() - it->second.closed_at < kPageReconnectGrace;
   }
   static bool valid_page_id(const std::string& id) {
     return !id.empty() && id.size() <= 64 &&
