@@ -106,10 +106,12 @@ def test_harness_names_both_versions_and_the_fix(firmware):
     assert want in r.stdout.splitlines(), r.stdout
 
 
-def test_daemon_names_both_versions_and_the_fix(firmware, tmp_path):
+def daemon_link_error(port, tmp_path):
+    """Starts rbx1d on port and polls `rbx1 status` until the link reports its error; returns (that error, the
+    daemon's stderr after a clean exit)."""
     sock = str(tmp_path / "rbx1d.sock")
     daemon = subprocess.Popen([os.path.join(BIN, "rbx1d"), "--config", os.path.join(SRC, "data", "rbx1.toml"),
-                               "--port", firmware.port, "--socket", sock, "--console", "127.0.0.1:0"],
+                               "--port", port, "--socket", sock, "--console", "127.0.0.1:0"],
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
         link = {}
@@ -121,14 +123,19 @@ def test_daemon_names_both_versions_and_the_fix(firmware, tmp_path):
                 if "error" in link:
                     break
             time.sleep(0.1)
-        want = (f"{firmware.port}: firmware speaks protocol version {THEIRS}, this host {messages.PROTO_VERSION}; "
-                f"flash the matching firmware: rbx1-flash {firmware.port} (from a checkout: make flash "
-                f"PORT={firmware.port})")
-        assert link.get("error") == want, link
     finally:
         daemon.terminate()
         assert daemon.wait(timeout=10) == 0
-    assert want in daemon.stderr.read()
+    return link.get("error"), daemon.stderr.read()
+
+
+def test_daemon_names_both_versions_and_the_fix(firmware, tmp_path):
+    error, stderr = daemon_link_error(firmware.port, tmp_path)
+    want = (f"{firmware.port}: firmware speaks protocol version {THEIRS}, this host {messages.PROTO_VERSION}; "
+            f"flash the matching firmware: rbx1-flash {firmware.port} (from a checkout: make flash "
+            f"PORT={firmware.port})")
+    assert error == want, error
+    assert want in stderr
 
 
 def test_harness_names_version_3_and_the_fix(firmware_v3):
@@ -143,26 +150,10 @@ def test_harness_names_version_3_and_the_fix(firmware_v3):
 
 
 def test_daemon_names_version_3_and_the_fix(firmware_v3, tmp_path):
-    sock = str(tmp_path / "rbx1d.sock")
-    daemon = subprocess.Popen([os.path.join(BIN, "rbx1d"), "--config", os.path.join(SRC, "data", "rbx1.toml"),
-                               "--port", firmware_v3.port, "--socket", sock, "--console", "127.0.0.1:0"],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    error, stderr = daemon_link_error(firmware_v3.port, tmp_path)
     port = firmware_v3.port
     want = (f"{port}: firmware speaks protocol version 3 (CRC-16 frames: it NAKs every frame of ours), this host "
             f"{messages.PROTO_VERSION}; flash the matching firmware: rbx1-flash {port} (from a checkout: make flash "
             f"PORT={port})")
-    try:
-        link = {}
-        for _ in range(100):  # the daemon's worker opens the link at start and reports why it is not ready
-            r = subprocess.run([os.path.join(BIN, "rbx1"), "status", "--json", "--socket", sock],
-                               capture_output=True, text=True, timeout=20)
-            if r.returncode == 0:
-                link = json.loads(r.stdout.strip().splitlines()[-1])["result"]["link"]
-                if "error" in link:
-                    break
-            time.sleep(0.1)
-        assert link.get("error") == want, link
-    finally:
-        daemon.terminate()
-        assert daemon.wait(timeout=10) == 0
-    assert want in daemon.stderr.read()
+    assert error == want, error
+    assert want in stderr
