@@ -269,6 +269,30 @@ TEST(GripSafety, CentroidOutsideTheObjectHasNoOneSidedZeroWidthGrip) {
   EXPECT_EQ(none.reason, GripReason::NoContact);
 }
 
+TEST(GripSafety, NoContactInsideACrackNarrowerThanAFinger) {
+  // An ellipse 80 x 50 px with a crack 1 px wide and 6 px deep in its rim at the end of its short axis (coins.png's
+  // round17: a dark pit in the rim cut its outline so): the narrowest line runs into the crack, 44 px. No finger
+  // fits in it, so the grip is the ellipse's 50 px; a notch 6 px wide is a real way in and keeps its 44 px.
+  auto ellipse_with_notch = [](double width) {
+    const double A = 40, B = 25, a = std::asin(width / 2 / A);
+    Poly p;
+    for (int i = 0; i <= 720; ++i) {
+      double t = -M_PI / 2 + a + i * (2 * M_PI - 2 * a) / 720;
+      p.push_back({300 + A * std::cos(t), 240 + B * std::sin(t)});
+    }
+    p.push_back({300 - width / 2, 240 - B + 6});  // the notch's floor, 6 px into the rim from above
+    p.push_back({300 + width / 2, 240 - B + 6});
+    return p;
+  };
+  GripOptions o;
+  Grip crack = grip_of(polygon_geometry(ellipse_with_notch(1.0), {300, 240}), o);
+  EXPECT_TRUE(crack.feasible);
+  EXPECT_NEAR(crack.opening_px, 50, 0.3);
+  Grip notch = grip_of(polygon_geometry(ellipse_with_notch(6.0), {300, 240}), o);
+  EXPECT_TRUE(notch.feasible);
+  EXPECT_NEAR(notch.opening_px, 44, 0.3);
+}
+
 TEST(GripSafety, ZeroWidthIsNeverFeasible) {
   Geometry g = polygon_geometry(rectangle({300, 240}, 100, 40, 0), {300, 240});
   GripOptions o;
