@@ -167,15 +167,17 @@ class Fw : public ::testing::Test {
     ASSERT_EQ(set_position({0, 0, 0, 0, 0, 0}), RBX1_OK);
   }
 
-  std::vector<Reply> frames_;
-  uint8_t seq_ = 0;
-
- private:
+  // Decodes what the firmware sent into frames_.
   void collect() {
     auto& tx = sim::board().tx;
     if (!tx.empty()) rbx1_decoder_feed(&dec_, tx.data(), tx.size());
     tx.clear();
   }
+
+  std::vector<Reply> frames_;
+  uint8_t seq_ = 0;
+
+ private:
   static void on_frame(void* ctx, const rbx1_frame* f) {
     Reply r;
     r.got = true;

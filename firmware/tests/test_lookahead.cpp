@@ -1,15 +1,20 @@
 // test_lookahead.cpp - the look-ahead on the simulated firmware: a stream of 500 short moves (a circle of two joints)
 // runs without stopping between them, ends exactly at the last target, keeps every joint within its MAX_SPEED and
 // ACCEL (measured from the step timestamps) and each move within its duration_ms; a corner slows to the junction
-// speed of the rule (firmware/README.md, Look-ahead), a reversal stops; STOP mid-stream stops within ACCEL.
+// speed of the rule (firmware/README.md, Look-ahead), a reversal stops; STOP mid-stream stops within ACCEL; the
+// passes cut short plan exactly as the full passes.
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <random>
 #include <vector>
 
 #include "config.h"
 #include "fw_fixture.hpp"
+#include "planner.h"
+#include "queue.h"
 #include "step_trace.hpp"
+#include "system.h"
 
 namespace rbx1::fwtest {
 namespace {
@@ -227,6 +232,154 @@ TEST_F(Lookahead, StopMidStreamDeceleratesWithinTheLimits) {
   EXPECT_LT((double)(all.back() - t_stop) / kHz, 2 * vmax_[0] / acc_[0] + 0.01);
   Measured m = measure(tr_, all.front(), all.back());
   expect_within_limits(m, vmax_, acc_);
+}
+
+// One request of a random stream: a MOVE (target, duration_ms), a GRIPPER entry or a STOP.
+struct Item {
+  enum Kind { kMove, kGripper, kStop } kind = kMove;
+  Target target{};
+  uint16_t duration_ms = 0;
+};
+
+// A random walk of all six joints: mostly gentle bends of 3..150 dominant steps (the bend share rules), some sharp
+// corners and reversals (the moves stop there), very short moves (never join), zero-length moves, moves stretched by
+// duration_ms, gripper entries, and one STOP two thirds in.
+std::vector<Item> random_stream(std::mt19937& rng, int n) {
+  std::uniform_real_distribution<double> u(0, 1), g(-1, 1);
+  std::vector<Item> out;
+  std::array<double, 6> dir{1, 0.5, 0, 0, 0, 0}, pos{};
+  for (int k = 0; k < n; k++) {
+    Item it;
+    double r = u(rng);
+    if (k == 2 * n / 3) {
+      it.kind = Item::kStop;
+      out.push_back(it);
+      continue;
+    }
+    if (r < 0.03) {
+      it.kind = Item::kGripper;
+      out.push_back(it);
+      continue;
+    }
+    if (r < 0.10) {
+      for (double& d : dir) d = u(rng) < 0.5 ? 0 : g(rng);  // a corner, some joints standing
+    } else if (r < 0.14) {
+      for (double& d : dir) d = -d;  // a reversal
+    } else {
+      for (double& d : dir) d += 0.08 * g(rng);  // a bend
+    }
+    double m = 0;
+    for (double d : dir) m = std::max(m, std::fabs(d));
+    if (m == 0) dir[0] = m = 1;
+    double len = u(rng) < 0.03 ? 0 : u(rng) < 0.08 ? 1 + 2 * u(rng) : 3 + 147 * u(rng);
+    for (int j = 0; j < 6; j++) {
+      pos[j] = std::clamp(pos[j] + len * dir[j] / m, -90000.0, 90000.0);
+      it.target[j] = (int32_t)std::lround(pos[j]);
+    }
+    if (u(rng) < 0.1) it.duration_ms = (uint16_t)(5 + 75 * u(rng));
+    out.push_back(it);
+  }
+  return out;
+}
+
+// The passes cut short (planner.cpp: the backward pass stops where the exit it keeps comes out unchanged, the
+// forward pass starts there) plan exactly as the full passes: a random stream runs twice from power-up, once with
+// planner_forget() before every main-loop iteration (each pass then runs over the whole queue, as before the cut),
+// and after every iteration every queued entry's entry, exit, a8, dv and ramp steps, and every step pulse and
+// completion time, are the same in both runs.
+TEST_F(Lookahead, EarlyStopsPlanAsTheFullPasses) {
+  std::mt19937 rng(9);
+  const std::vector<Item> items = random_stream(rng, 400);
+  struct Run {
+    // Every main-loop iteration whose plan differs from the one before: its number, the entry count, then six
+    // words per entry.
+    std::vector<uint32_t> plans;
+    std::vector<uint64_t> pulses, done;
+    uint32_t iterations = 0;
+    int moves = 0, bends = 0, joined = 0;  // entries joined and with a bend share, over the changed plans
+  };
+  auto run = [&](bool full) {
+    Run out;
+    tr_ = Trace{};
+    seq_ = 0;
+    SetUp();
+    EXPECT_EQ(config_set(0xFF, RBX1_KEY_HEARTBEAT_MS, 60000), RBX1_OK);  // the drain after STOP sends nothing
+    std::vector<uint32_t> last;  // the previous iteration's snapshot: only changes are kept (exact, and small)
+    auto tick = [&] {
+      sim::run_until(sim::board().now + sim::kTicksPerMs / 4);
+      if (full) planner_forget();
+      fw_loop();
+      collect();
+      plan_block* q[QUEUE_SIZE];
+      uint8_t c = queue_blocks(q);
+      std::vector<uint32_t> now{c};
+      for (uint8_t k = 0; k < c; k++) {
+        const plan_block* b = q[k];
+        now.insert(now.end(), {b->seq, b->entry_sq4, b->exit_sq4, b->a8, b->dv, b->decel_steps});
+      }
+      if (now != last) {
+        out.plans.push_back(out.iterations);
+        out.plans.insert(out.plans.end(), now.begin(), now.end());
+        for (uint8_t k = 0; k < c; k++) {
+          out.joined += (q[k]->joins & PLAN_JOINS) != 0;
+          out.bends += q[k]->bend8 > 0.0f;
+        }
+        last.swap(now);
+      }
+      out.iterations++;
+    };
+    auto send = [&](uint8_t type, const uint8_t* p, uint8_t len) {
+      frames_.clear();
+      std::vector<uint8_t> f = encode(take_seq(), type, p, len);
+      send_bytes(f.data(), f.size());
+      for (int i = 0; i < 400 && frames_.empty(); i++) tick();
+      EXPECT_FALSE(frames_.empty()) << "no answer";
+      return frames_.empty() || frames_[0].payload.empty() ? 0xFF : frames_[0].payload[0];
+    };
+    auto drain = [&] {
+      for (int i = 0; i < 400000 && sys_state() != RBX1_STATE_IDLE; i++) tick();
+    };
+    for (const Item& it : items) {
+      if (it.kind == Item::kStop) {
+        EXPECT_EQ(send(RBX1_MSG_STOP, nullptr, 0), RBX1_OK);
+        drain();
+        continue;
+      }
+      while (queue_free() == 0) tick();
+      uint8_t p[RBX1_MOVE_REQ_LEN];
+      uint8_t st;
+      if (it.kind == Item::kGripper) {
+        rbx1_gripper_req r{1500, 20};
+        st = send(RBX1_MSG_GRIPPER, p, rbx1_gripper_req_pack(&r, p));
+      } else {
+        rbx1_move_req r{};
+        std::copy(it.target.begin(), it.target.end(), r.target);
+        r.duration_ms = it.duration_ms;
+        st = send(RBX1_MSG_MOVE, p, rbx1_move_req_pack(&r, p));
+        out.moves++;
+      }
+      EXPECT_EQ(st, RBX1_OK);
+    }
+    drain();
+    out.pulses = tr_.all();
+    out.done = tr_.done;
+    return out;
+  };
+  const Run full = run(true), cut = run(false);
+  // The stream exercised the look-ahead: moves joined, most with a bend share.
+  EXPECT_GT(full.joined, 1000);
+  EXPECT_GT(full.bends, 1000);
+  EXPECT_EQ(cut.moves, full.moves);
+  ASSERT_EQ(cut.plans.size(), full.plans.size());
+  size_t i = 0;
+  while (i < full.plans.size() && cut.plans[i] == full.plans[i]) i++;
+  EXPECT_EQ(i, full.plans.size()) << "plans differ at word " << i << " of " << full.plans.size();
+  EXPECT_EQ(cut.done, full.done);
+  EXPECT_EQ(cut.pulses, full.pulses);
+  EXPECT_GT(full.pulses.size(), 10000u);
+  EXPECT_EQ(cut.iterations, full.iterations);
+  std::printf("random stream: %d moves, %u main-loop iterations, %zu plan words compared, %zu pulses\n", full.moves,
+              full.iterations, full.plans.size(), full.pulses.size());
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <ctime>
 #include <fstream>
@@ -157,7 +158,7 @@ int main(int argc, char** argv) {
   int isr_vector = -1;
   double max_seconds = 0;
   uint32_t uart_baud = 0;
-  std::string trace_path, clock_file;
+  std::string trace_path, clock_file, time_function;
   bool hold_for_host = false;
   app.add_option("--elf", elf, "firmware ELF")->capture_default_str();
   app.add_option("--control", control, "control FIFO (estop 0|1 [DELAY_CYCLES|@CYCLES_AFTER_STEP_IRQ[:NTH_IRQ]], limit J 0|1, reset, stats FILE, quit)");
@@ -170,6 +171,9 @@ int main(int argc, char** argv) {
                  "time UART0 bytes at this line rate instead of the firmware's UBRR0 (benchmarks)");
   app.add_option("--trace", trace_path,
                  "log every STEP/DIR edge, interrupt entry/exit and I-bit change with its cycle to this file");
+  app.add_option("--time-function", time_function,
+                 "with --trace: log every call of the main-loop function at this byte address (hex, avr-nm's): entry "
+                 "cycle, cycles to its return, the same less the interrupts inside it");
   app.add_flag("--hold-for-host", hold_for_host,
                "benchmarks: simulated time stands still while the host is late (what the firmware sent waits unread "
                "and nothing the host wrote waits for the firmware) or says it is busy (--clock-file byte 8 = 1), so "
@@ -206,6 +210,16 @@ int main(int argc, char** argv) {
       return 2;
     }
     trace = &trace_log;
+  }
+  if (!time_function.empty()) {
+    char* end = nullptr;
+    const unsigned long pc = std::strtoul(time_function.c_str(), &end, 16);
+    if (!trace || time_function.empty() || *end || pc == 0 || pc >= 0x40000) {
+      std::fprintf(stderr, "rbx1-avrsim: --time-function needs --trace and a flash byte address in hex, got '%s'\n",
+                   time_function.c_str());
+      return 2;
+    }
+    trace->time_function(static_cast<uint32_t>(pc));
   }
   Estop estop{&board, &probes, trace};
   // The step timer's compare match raises TIMER1_COMPA (vector 17 on the ATmega2560).

@@ -3,8 +3,8 @@
 default) to rbx1-avrsim --trace (real time) as fast as the queue takes them, then measures from the pin-level trace: exact counts,
 the longest gap between STEP pulses mid-stream against the slowest junction speed of the rule (firmware/README.md,
 Look-ahead), every joint's speed and acceleration from the step timestamps, STEP pulse width and DIR setup time,
-the profile tick's cycles, each answer's latency (last request byte in to first answer byte out), and the
-interrupts-off windows and compare writes (tools/avrsim/timing.py's analysis).
+the profile tick's cycles, each answer's latency (last request byte in to first answer byte out), the look-ahead's
+passes (planner_recalculate's cycles, from the trace's timed function), and the interrupts-off windows and compare writes (tools/avrsim/timing.py's analysis).
 Used by tools/avrsim/test/test_lookahead.py (thresholds) and tools/bench/motion (figures).
 Usage: stream.py [--moves N] [--json OUT]"""
 import argparse
@@ -59,7 +59,7 @@ def junction_speed(a, b, c, vmax=VMAX, acc=ACCEL):
     return v
 
 
-def run(trace_path, targets, duration_ms=0, vmax=VMAX, acc=ACCEL):
+def run(trace_path, targets, duration_ms=0, vmax=VMAX, acc=ACCEL, elf=timing.ELF):
     """Streams targets (from position 0) to the real ELF in real time (under --fast the simulation outruns a host
     that the machine's load holds up, and the queue runs empty); returns (STATUS after, avrsim JSON, MOVEs refused
     as QUEUE_FULL, the moves (counted from 1) after the third accepted with at most three in the queue: the host
@@ -69,7 +69,7 @@ def run(trace_path, targets, duration_ms=0, vmax=VMAX, acc=ACCEL):
     except OSError:
         pass
     with tempfile.TemporaryDirectory(prefix="rbx1-stream-") as tmp:
-        b = Board(trace_path, tmp, fast=False, hold_for_host=True)
+        b = Board(trace_path, tmp, fast=False, hold_for_host=True, elf=elf, time_function=TIMED)
         full, starved = 0, []
         try:
             b.queue = b.req(MsgType.HELLO, proto_version=timing.PROTO_VERSION)["queue_size"]
@@ -103,6 +103,23 @@ def run(trace_path, targets, duration_ms=0, vmax=VMAX, acc=ACCEL):
 
 
 PROFILE_VECTOR = 32  # TIMER3_COMPA: the 1 kHz profile tick
+TIMED = "planner_recalculate"  # the look-ahead's passes (out of line so that the trace can time them)
+
+
+def passes(trace_path):
+    """The look-ahead's passes (planner_recalculate's calls, the trace's "F" lines): (count, median own cycles, largest
+    own cycles, largest with the interrupts inside it)."""
+    own, wall = [], []
+    with open(trace_path) as f:
+        for line in f:
+            if line[0] == "F":
+                _, _, w, o = line.split()
+                wall.append(int(w))
+                own.append(int(o))
+    own.sort()
+    if not own:
+        return 0, None, None, None
+    return len(own), own[len(own) // 2], own[-1], max(wall)
 RX_VECTOR, UDRE_VECTOR = 25, 26  # USART0_RX and USART0_UDRE
 
 
@@ -225,6 +242,7 @@ def figures(trace_path, targets, starved=(), vmax=VMAX, acc=ACCEL):
     v0 = math.sqrt(min(acc[j] for j in range(6) if steps[j]) / 2)
     t = timing.analyse(trace_path)  # interrupts-off windows and compare writes while the look-ahead works
     lat = answer_latency(trace_path)
+    pa = passes(trace_path)
     return {"net_steps": [sum(d for _, d in s) for s in steps], "pulses": sum(len(s) for s in steps),
             "seconds": (all_t[-1] - all_t[0]) / HZ, "junction_speed_min": vj, "stop_rate": v0,
             "targets_reached_in_order": len(arr), "stops_left_out": len(skip),
@@ -236,7 +254,8 @@ def figures(trace_path, targets, starved=(), vmax=VMAX, acc=ACCEL):
             "irq_off_windows_max_cycles": t["irq_off_windows_max_cycles"],
             "step_isr_wait_max_cycles": t["step_isr_wait_max_cycles"], "ocr1a_late_writes": t["ocr1a_late_writes"],
             "answer_latency_median_cycles": lat[0], "answer_latency_p90_cycles": lat[1],
-            "answer_latency_max_cycles": lat[2], "answers_timed": lat[3]}
+            "answer_latency_max_cycles": lat[2], "answers_timed": lat[3],
+            "passes": pa[0], "pass_median_cycles": pa[1], "pass_max_cycles": pa[2], "pass_max_with_interrupts_cycles": pa[3]}
 
 
 def main():

@@ -158,6 +158,17 @@ def analyse(path, phases=(), step_vector=STEP_VECTOR):
     }
 
 
+def function_address(elf, name):
+    """The flash byte address of the function `name` (unmangled, as `avr-nm -C` prints it: LTO may add a clone
+    suffix) in elf; the function must be out of line."""
+    out = subprocess.run(["avr-nm", "-C", elf], capture_output=True, text=True, check=True).stdout
+    for line in out.splitlines():
+        p = line.split(None, 2)
+        if len(p) == 3 and p[1] in "Tt" and p[2].startswith(name + "("):
+            return int(p[0], 16)
+    raise RuntimeError(f"{elf}: no function {name} (inlined?)")
+
+
 class HostTurn:
     """A pyserial port telling rbx1-avrsim (--hold-for-host) when the host is busy: from the moment a read returns
     until the next read begins (deciding, writing), the board's time stands still, so a host descheduled in its turn
@@ -188,12 +199,13 @@ class Board:
     hold_for_host, the simulator's time follows the host (--hold-for-host, HostTurn) and the Link times out on the
     board's clock (--clock-file): a host held up by a loaded machine is never late for the simulated arm."""
 
-    def __init__(self, trace_path, workdir, fast=True, hold_for_host=False):
+    def __init__(self, trace_path, workdir, fast=True, hold_for_host=False, elf=ELF, time_function=None):
         self.fifo = os.path.join(workdir, "control.fifo")
         self.json = os.path.join(workdir, "avrsim.json")
         clock = os.path.join(workdir, "clock")
-        self.proc = subprocess.Popen([AVRSIM, "--elf", ELF] + (["--fast"] if fast else []) +
-                                     (["--hold-for-host", "--clock-file", clock] if hold_for_host else []) +
+        timed = ["--time-function", f"{function_address(elf, time_function):x}"] if time_function else []
+        self.proc = subprocess.Popen([AVRSIM, "--elf", elf] + (["--fast"] if fast else []) +
+                                     (["--hold-for-host", "--clock-file", clock] if hold_for_host else []) + timed +
                                      ["--trace", trace_path, "--json", self.json,
                                       "--control", self.fifo, "--max-seconds", "300"], stdout=subprocess.PIPE, text=True)
         self.link = Link(self.proc.stdout.readline().strip(), timeout=0.5, retries=10)

@@ -40,7 +40,8 @@ bool Trace::open(avr_t* avr, const std::string& path, std::string& error) {
   static char buf[1 << 20];
   std::setvbuf(out_, buf, _IOFBF, sizeof buf);
   std::fprintf(out_, "# rbx1-avrsim trace 1: S cycle joint level | D cycle joint level | E/X/P cycle vector | "
-                     "W cycle length where pc | O cycle ocr1a tcnt1 | K cycle level | w short_windows short_max\n");
+                     "W cycle length where pc | O cycle ocr1a tcnt1 | K cycle level | w short_windows short_max | "
+                     "F cycle cycles own_cycles | f calls\n");
   for (int j = 0; j < 6; j++) {
     avr_irq_register_notify(pin_irq(avr, kJoints[j].step), &Trace::on_step, new Hook{this, j});
     avr_irq_register_notify(pin_irq(avr, kJoints[j].dir), &Trace::on_dir, new Hook{this, j});
@@ -81,10 +82,11 @@ void Trace::on_vector(avr_irq_t*, uint32_t value, void* param) {
   if (value) {
     // simavr's own depth is the truth: a watchdog reset abandons interrupts without RETI.
     t->depth_ = std::min<int>(static_cast<int>(t->avr_->interrupts.running_ptr), 15);  // before this entry
+    if (t->depth_ == 0) t->isr_at_ = t->avr_->cycle;
     t->depth_vec_[t->depth_++] = h->index;
     t->entered_ = true;
   } else if (t->depth_ > 0) {
-    t->depth_--;
+    if (--t->depth_ == 0 && t->in_fn_) t->fn_isr_ += t->avr_->cycle - t->isr_at_;
   }
   std::fprintf(t->out_, "%c %llu %d\n", value ? 'E' : 'X', cyc(t->avr_), h->index);
 }
@@ -116,6 +118,26 @@ void Trace::ibit_changed(uint8_t i) {
   else
     std::fprintf(out_, "W %llu %llu %c%d %x\n", static_cast<unsigned long long>(off_at_),
                  static_cast<unsigned long long>(w), off_ctx_ >= 100 ? 'e' : 'c', off_ctx_ % 100, off_pc_);
+}
+
+// "F entry cycles own": the timed function from its first instruction to its return (the first instruction at which
+// SP is back above the return address: the stack only grows below it meanwhile, interrupts included), and the same
+// less the interrupts that ran inside it. Only main-loop calls count (none enters it in an interrupt).
+void Trace::function_step() {
+  if (!in_fn_) {
+    if (depth_ > 0) return;
+    in_fn_ = true;
+    fn_sp_ = sp();
+    fn_at_ = avr_->cycle;
+    fn_isr_ = 0;
+    return;
+  }
+  if (sp() <= fn_sp_) return;
+  in_fn_ = false;
+  fn_calls_++;
+  const uint64_t wall = avr_->cycle - fn_at_, own = wall - fn_isr_;
+  std::fprintf(out_, "F %llu %llu %llu\n", static_cast<unsigned long long>(fn_at_),
+                 static_cast<unsigned long long>(wall), static_cast<unsigned long long>(own));
 }
 
 void Trace::on_pending(avr_irq_t*, uint32_t value, void* param) {
@@ -159,6 +181,7 @@ void Trace::flush() {
   if (!out_) return;
   std::fprintf(out_, "w %llu %llu\n", static_cast<unsigned long long>(short_count_),
                static_cast<unsigned long long>(short_max_));
+  if (fn_pc_) std::fprintf(out_, "f %llu\n", static_cast<unsigned long long>(fn_calls_));
   std::fflush(out_);
 }
 

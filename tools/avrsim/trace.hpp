@@ -3,6 +3,8 @@
 // e-stop input edges, each stamped with the simulated cycle, written as text lines to a file (tools/avrsim/timing.py
 // analyses it). Interrupts-off windows (I bit 1 -> 0 -> 1) of kShortWindow cycles or more are logged one a line
 // with where they began; shorter ones (the main loop's many brief guards) are only counted, in the closing line.
+// Optionally the calls of one function (its first instruction's address): entry to return, and the same less the
+// interrupts that ran inside it.
 #pragma once
 
 #include <cstdint>
@@ -19,10 +21,14 @@ class Trace {
  public:
   // Opens FILE and hooks the pins, vectors and Timer1 registers of avr. Returns false with error set.
   bool open(avr_t* avr, const std::string& path, std::string& error);
-  // After every instruction: logs a change of the I bit (cli, sei, interrupt entry, RETI, writes to SREG).
+  // Times the calls of the main-loop function whose first instruction is at byte address pc (0: none).
+  void time_function(uint32_t pc) { fn_pc_ = pc; }
+  // After every instruction: logs a change of the I bit (cli, sei, interrupt entry, RETI, writes to SREG), and
+  // the timed function's entry and return.
   inline void after_instruction() {
     const uint8_t i = avr_->sreg[S_I];
     if (i != ibit_) ibit_changed(i);
+    if (fn_pc_ && (in_fn_ || avr_->pc == fn_pc_)) function_step();
   }
   void estop_edge(bool asserted);
   void flush();
@@ -37,6 +43,8 @@ class Trace {
   static void on_tccr1b(avr_irq_t* irq, uint32_t value, void* param);
   uint32_t tcnt1() const;
   void ibit_changed(uint8_t i);
+  void function_step();
+  uint16_t sp() const { return static_cast<uint16_t>(avr_->data[R_SPL] | (avr_->data[R_SPH] << 8)); }
 
   static constexpr uint64_t kShortWindow = 24;
   uint64_t off_at_ = 0;      // cycle the I bit went to 0
@@ -46,6 +54,13 @@ class Trace {
   int depth_vec_[16] = {};   // running vectors, innermost last
   int depth_ = 0;
   uint64_t short_count_ = 0, short_max_ = 0;
+
+  // The timed function: every call is logged ("F"), and counted in the closing "f" line.
+  uint32_t fn_pc_ = 0;
+  bool in_fn_ = false;
+  uint16_t fn_sp_ = 0;                          // SP at its first instruction (the return address just above)
+  uint64_t fn_at_ = 0, fn_isr_ = 0, isr_at_ = 0;  // entry cycle, interrupt cycles inside it, outer interrupt's entry
+  uint64_t fn_calls_ = 0;
 
   avr_t* avr_ = nullptr;
   std::FILE* out_ = nullptr;

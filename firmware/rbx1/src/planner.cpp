@@ -162,6 +162,7 @@ uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6]
   }
   b->n = n;
   b->planned_ms = duration_ms;
+  b->back_sq4 = PLAN_UNPLANNED;
   if (n == 0) return RBX1_OK;  // nothing to step: the entry is a dwell of duration_ms (and a stop)
 
   // Dominant-joint limits: joint i moves steps[i]/n as fast as the dominant one, so its own limits scale up.
@@ -237,6 +238,7 @@ void plan_gripper(plan_block *b, uint16_t pulse_us, uint16_t dwell_ms) {
   b->pulse_us = pulse_us;
   b->duration_ms = dwell_ms;
   b->planned_ms = dwell_ms;
+  b->back_sq4 = PLAN_UNPLANNED;
 }
 
 // The exit and its ramp, as the stepper reads them (interrupts off for the 8 bytes; the division outside).
@@ -249,34 +251,44 @@ static void set_exit(plan_block *b, uint32_t exit_sq4) {
   hal_irq_restore(s);
 }
 
-void planner_recalculate(void) {
+// The passes (firmware/README.md, Look-ahead: Passes), cut short GRBL's way where the result is known not to change.
+// The backward pass's exit of every entry (back_sq4) is a function of the exit of the entry after it and of that
+// entry's own fixed data: the passes keep the chain, so where a recomputed exit equals the one kept, every earlier
+// one is unchanged too and the backward pass stops there. The forward pass starts at that entry: up to it entries,
+// a8 and exits are those of the previous pass (the same entry of the oldest, the same backward exits). Both stops
+// are exact: the plan is the one the full passes make (Lookahead.EarlyStopsPlanAsTheFullPasses compares them).
+// Out of line (one call per commit) so that rbx1-avrsim's trace can time it (--time-function: tools/bench/motion).
+__attribute__((noinline)) void planner_recalculate(void) {
   plan_block *q[QUEUE_SIZE];
   uint32_t exit[QUEUE_SIZE];
   uint8_t c = queue_blocks(q);  // oldest first; a pop meanwhile leaves the popped block's data in place
   if (c < 2) return;
   // Backward: the last entry ends at its stop rate; each earlier one exits as fast as the next can enter (within
   // its junction limit and what it can slow down from over its own steps).
-  exit[c - 1] = q[c - 1]->stop_sq4;
-  for (uint8_t k = (uint8_t)(c - 1); k >= 1; k--) {
+  uint8_t k = (uint8_t)(c - 1);
+  q[k]->back_sq4 = q[k]->stop_sq4;
+  for (; k >= 1; k--) {
     plan_block *b = q[k];
-    uint32_t entry = b->stop_sq4;
+    uint32_t back = q[k - 1]->stop_sq4;
     if (b->joins & PLAN_JOINS) {
       // entry <= exit + n a8(entry), a8 falling with the entry by the bend's share: solved for the entry.
       if (b->bend8 > 0.0f) {
-        float e = ((float)exit[k] + (float)b->span_sq4) * b->keep;
-        entry = e < 4.0e9f ? (uint32_t)e : 0xFFFFFFFFUL;
+        float e = ((float)b->back_sq4 + (float)b->span_sq4) * b->keep;
+        back = e < 4.0e9f ? (uint32_t)e : 0xFFFFFFFFUL;
       } else {
-        entry = add_sat(exit[k], b->span_sq4);
+        back = add_sat(b->back_sq4, b->span_sq4);
       }
-      if (entry > b->max_entry_sq4) entry = b->max_entry_sq4;
+      if (back > b->max_entry_sq4) back = b->max_entry_sq4;
     }
-    exit[k - 1] = (b->joins & PLAN_JOINS) ? entry : q[k - 1]->stop_sq4;
+    if (back == q[k - 1]->back_sq4) break;  // never PLAN_UNPLANNED: at most 4e9 (sq4_of)
+    q[k - 1]->back_sq4 = back;
   }
+  uint8_t from = k ? (uint8_t)(k - 1) : 0;
   // Forward: no exit faster than the move can reach from its own entry (at a8 of that entry). Computed before
   // anything is written, so the stepper never sees a running move's exit raised and lowered again: exits only rise
   // as moves arrive.
-  uint32_t entry = q[0]->entry_sq4;
-  for (uint8_t k = 0; k < c; k++) {
+  uint32_t entry = q[from]->entry_sq4;
+  for (k = from; k < c; k++) {
     // The oldest keeps the a8 of its entry (it may be running); so does a move whose entry did not change.
     uint32_t a8 = q[k]->a8, span = q[k]->span_sq4;
     if (k && entry != q[k]->entry_sq4) {
@@ -292,11 +304,17 @@ void planner_recalculate(void) {
       }
     }
     uint32_t reach = add_sat(entry, span);
-    if (exit[k] > reach) exit[k] = reach;
+    exit[k] = q[k]->back_sq4 > reach ? reach : q[k]->back_sq4;
     if (k) set_accel(q[k], a8);
     entry = (k + 1 < c && (q[k + 1]->joins & PLAN_JOINS)) ? exit[k] : (k + 1 < c ? q[k + 1]->stop_sq4 : 0);
   }
-  for (uint8_t k = 0; k < c; k++) set_exit(q[k], exit[k]);
+  for (k = from; k < c; k++) set_exit(q[k], exit[k]);
+}
+
+void planner_forget(void) {
+  plan_block *q[QUEUE_SIZE];
+  uint8_t c = queue_blocks(q);
+  for (uint8_t k = 0; k < c; k++) q[k]->back_sq4 = PLAN_UNPLANNED;
 }
 
 static uint8_t stale;  // main loop only

@@ -18,6 +18,9 @@
 #define PLAN_JOINS 1        // runs on from the previous queue entry without stopping (the junction rule allows it)
 #define PLAN_NEVER_JOINS 2  // too short to run on (under two profile ticks at its stop rate): stops at both ends
 
+// plan_block.back_sq4 of an entry no backward pass has reached yet (above any 4 v^2 the planner computes)
+#define PLAN_UNPLANNED 0xFFFFFFFFUL
+
 struct plan_block {
   uint8_t kind;           // BLOCK_MOVE or BLOCK_GRIPPER
   uint8_t dir_positive;   // bit per joint: moving towards larger step counts
@@ -40,6 +43,7 @@ struct plan_block {
   float bend8;            // the bend's share: a8 = a8_full - bend8 * entry_sq4 (0 when it does not join)
   float keep;             // 1 / (1 + bend8 n): the backward pass's entry from its exit (E <= (exit + span) keep)
   uint32_t max_entry_sq4; // junction limit with the previous entry (stop_sq4 when it does not join)
+  uint32_t back_sq4;      // the backward pass's exit (what the entries after it allow), kept for the next pass
   // Look-ahead results, changed by planner_recalculate() while the entry waits or runs (interrupts off around
   // each pair): 4 v^2 at entry and exit, and the steps of the ramp from vc down to the exit; a8 and dv with the
   // entry (the stepper reads them when the entry starts).
@@ -56,8 +60,12 @@ uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6]
 // A gripper entry: servo pulse then a dwell.
 void plan_gripper(plan_block *b, uint16_t pulse_us, uint16_t dwell_ms);
 // The look-ahead passes over the queue after a commit: backward from the last entry (which ends at its stop rate)
-// and forward from the oldest (which may be running: its exit is only ever raised, see stepper.cpp).
+// and forward from the oldest (which may be running: its exit is only ever raised, see stepper.cpp), each cut
+// short where the previous passes' result stands.
 void planner_recalculate(void);
+// Drops what the previous passes kept (back_sq4): the next pass runs over the whole queue (the test that compares
+// the cut-short passes with the full ones; a firmware that never calls it does not contain it).
+void planner_forget(void);
 // A commit marks the look-ahead stale; the main loop recalculates after the link has answered what it read, once
 // for all the moves committed meanwhile (a filled gap can release seven). Until then a new entry keeps the exits
 // it was committed with (stops at both ends), which is always safe.
