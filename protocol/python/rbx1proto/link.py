@@ -1,6 +1,8 @@
 """link.py - an RBX1 link over a serial port (pyserial): requests one at a time or a stream with a window of them in
 flight (selective repeat: requests held ahead of a lost one are not resent), SEQ tracking, HELLO."""
 import binascii
+import os
+import select
 import time
 
 from . import frame, messages
@@ -10,6 +12,7 @@ RESPONSE_BIT = 0x80
 SLOW_TYPES = (MsgType.CONFIG_SET, MsgType.CONFIG_RESET)  # they write EEPROM: answered within 1 s (PROTOCOL.md)
 SLOW_TIMEOUT = 1.0
 INTER_BYTE_TIMEOUT = 0.05  # a partial frame older than this is dropped after a rescan (PROTOCOL.md)
+WRITE_STALL = 1.0  # a port that takes no byte for this long (a device that stopped reading): LinkError
 PROBE_TYPE = MsgType.NAK  # a probe: a frame of no request type, NAKed UNKNOWN_TYPE in order (PROTOCOL.md "Probe")
 
 
@@ -41,7 +44,6 @@ class Link:
         self.ser.port = port
         self.ser.baudrate = baudrate
         self.ser.timeout = timeout
-        self.ser.write_timeout = 1.0
         self.ser.open()
         _clear_hupcl(self.ser)
         self.timeout = timeout
@@ -70,9 +72,27 @@ class Link:
     def __exit__(self, *exc):
         self.close()
 
+    def write(self, data):
+        """Writes all of data to the port; LinkError when the port takes no byte for WRITE_STALL seconds. Not
+        pyserial's write_timeout: pyserial 3.5 measures it from the call and checks it after the bytes went out, so
+        a process descheduled that long during the call raised SerialTimeoutException with everything written (a
+        9-byte HELLO in e2e_avrsim at load 18). Here only the port's own silence counts: select() rechecks the port
+        when its timeout ends, however late this process runs again."""
+        fd, view = self.ser.fileno(), memoryview(bytes(data))
+        while view:
+            try:
+                n = os.write(fd, view)
+            except BlockingIOError:
+                n = 0
+            if n:
+                view = view[n:]
+            elif not select.select([], [fd], [], WRITE_STALL)[1]:
+                raise LinkError(f"{self.ser.port}: the port took no byte for {WRITE_STALL} s "
+                                f"({len(view)} of {len(data)} left to write)")
+
     def send_raw(self, data):
         """Writes bytes as they are (tests: garbage, corrupt frames)."""
-        self.ser.write(bytes(data))
+        self.write(data)
         self.ser.flush()
 
     def request(self, msg_type, **fields):
@@ -157,7 +177,7 @@ class Link:
                 probes.append((seq, tx))
                 data += frame.encode(seq, PROBE_TYPE, b"")
                 self.probes += 1
-            self.ser.write(data)
+            self.write(data)
 
         def probe_answered(ev):
             """The copy number of the probe a NAK UNKNOWN_TYPE answers (the oldest written with its SEQ: the earliest
@@ -279,7 +299,7 @@ class Link:
             if attempt:
                 self.retransmissions += 1
             deadline = self.clock() + wait
-            self.ser.write(wire)
+            self.write(wire)
             self.ser.flush()
             while True:
                 # Read first, decide after: a process descheduled past the deadline still takes the response

@@ -8,7 +8,8 @@ import time
 import tty
 
 import pytest
-import serial  # noqa: F401  pyserial (tools/apt-packages.txt): missing is a failure, never a skip
+import serial  # pyserial (tools/apt-packages.txt): missing is a failure, never a skip
+import serial.serialutil
 
 from rbx1proto import frame, messages  # noqa: E402
 from rbx1proto.link import Link, LinkError  # noqa: E402
@@ -289,17 +290,16 @@ def test_late_wakeup_reads_waiting_response_without_retransmitting(pty_pair):
             offset[0] += 10.0
         return time.monotonic() + offset[0]
 
-    write = link.ser.write
+    write = link.write
 
     def write_then_sleep(data):
-        n = write(data)
+        write(data)
         end = time.monotonic() + 2.0
         while link.ser.in_waiting == 0 and time.monotonic() < end:
             time.sleep(0.005)  # "descheduled" until the response has arrived
-        return n
 
     link.clock = clock
-    link.ser.write = write_then_sleep
+    link.write = write_then_sleep
     r = link.request(MsgType.MOVE, **MOVE)
     assert r == {"status": 0, "queue_free": 15}
     s = link.request(MsgType.STATUS)
@@ -312,6 +312,39 @@ def test_late_wakeup_reads_waiting_response_without_retransmitting(pty_pair):
 
 def stream_moves(link, n, start=0):
     return link.stream([(MsgType.MOVE, dict(target=[start + i, 0, 0, 0, 0, 0], duration_ms=0)) for i in range(n)])
+
+
+def test_descheduled_during_a_write_is_no_error(pty_pair, monkeypatch):
+    # Every look at the wall clock finds 10 s gone, as when a loaded machine deschedules the process mid-write:
+    # pyserial's own write_timeout (1 s, measured from the call) raised SerialTimeoutException with every byte
+    # written (e2e_avrsim's first HELLO at load 18). The Link counts only a port that takes nothing.
+    link, peer = pty_pair
+    jump = [time.monotonic()]
+
+    def late():
+        jump[0] += 10.0
+        return jump[0]
+
+    monkeypatch.setattr(serial.serialutil.Timeout, "TIME", staticmethod(late))
+    link.timeout = 30.0  # the Link's own clock is the real one: no retransmission however late the peer thread runs
+    r = link.request(MsgType.MOVE, **MOVE)
+    assert r == {"status": 0, "queue_free": 15}
+    assert link.retransmissions == 0 and len(peer.received) == 1
+
+
+def test_a_port_that_takes_nothing_fails_the_write():
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    link = Link(os.ttyname(slave), timeout=TIMEOUT, retries=5)
+    try:
+        t0 = time.monotonic()
+        with pytest.raises(LinkError, match="the port took no byte for 1.0 s"):
+            link.send_raw(b"\x00" * (1 << 20))  # nobody reads the master: the pty's buffer fills
+        assert time.monotonic() - t0 >= 1.0
+    finally:
+        link.close()
+        os.close(slave)
+        os.close(master)
 
 
 def test_stream_keeps_the_window_in_flight(pty_pair):
