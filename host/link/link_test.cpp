@@ -161,12 +161,13 @@ TEST_F(LinkTest, RetransmitsTheSameBytesOnSilence) {
 }
 
 TEST_F(LinkTest, RetransmitsAtOnceOnNak) {
+  link.set_timing(20000, 5);  // a timeout waited would show as 20 s, which no load on the machine comes near
   peer.nak_next = 3;
   uint8_t seq = link.next_seq();
   auto t0 = steady_clock::now();
   rbx1_move_resp r{};
   ASSERT_EQ(link.move(some_move(7), r), 0);
-  EXPECT_LT(ms_since(t0), 300);  // no timeout waited (timeouts counted below; loose for a loaded machine)
+  EXPECT_LT(ms_since(t0), 20000);  // no timeout waited (and none counted below)
   EXPECT_EQ(with_seq(peer, seq).size(), 4u);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 1);
   EXPECT_EQ(delta().naks, 3u);
@@ -495,22 +496,22 @@ TEST_F(LinkTest, HeartbeatOnlyWhenIdle) {
 TEST(Link, VanishingDeviceEndsAnOutstandingRequest) {
   auto peer = std::make_unique<FakePeer>();
   Link link;
-  link.set_timing(1000, 5);
+  link.set_timing(20000, 5);  // one timeout waited would show as 20 s, which no load on the machine comes near
   std::string error;
   ASSERT_EQ(link.open(peer->slave_path(), 115200, error), 0) << error;
   peer->drop_next = 1000;
+  auto t0 = steady_clock::now();  // before the thread starts its 150 ms: taken after, a late main thread saw 131 ms
   std::thread unplug([&] {
     std::this_thread::sleep_for(milliseconds(150));
     peer->hang_up();
   });
-  auto t0 = steady_clock::now();
   rbx1_move_resp r{};
   int rc = link.move(some_move(1), r);
   int64_t took = ms_since(t0);
   unplug.join();
   EXPECT_TRUE(rc == -ENODEV || rc == -EIO) << rc;
   EXPECT_GE(took, 140);
-  EXPECT_LT(took, 900);  // the 6 x 1000 ms of retransmissions were not waited out
+  EXPECT_LT(took, 20000);  // not even the first of the 6 x 20 s of retransmissions was waited out
   EXPECT_FALSE(link.connected());
   EXPECT_EQ(link.stats().link_down, 0u);
   EXPECT_EQ(link.estop(), rc);  // every call now says the port is gone
