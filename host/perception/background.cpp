@@ -173,33 +173,72 @@ bool contrast_from_background(const cv::Mat& gray, const cv::Mat& background_gra
 namespace {
 
 // Quadratic surface fitted to the pixels of `cls` (least squares, a second round without the outliers); its
-// robust residual spread in `resid`. false when too few pixels.
+// robust residual spread in `resid`. false when too few pixels. The 6x6 normal equations, from the sums of
+// u^i v^j (i + j <= 4) and of the grey times u^i v^j (i + j <= 2), accumulated row by row (the basis lies in
+// [-1, 1], so they are well conditioned), solved by Cholesky: an SVD of the whole pixels x 6 system gave the
+// same surface at 40 % of the automatic background's time.
 bool fit_surface(const cv::Mat& small, const cv::Mat& cls, cv::Mat& coef, double& resid) {
-  auto basis = [&](int x, int y, double* b) {
-    double u = 2.0 * x / std::max(1, small.cols - 1) - 1, v = 2.0 * y / std::max(1, small.rows - 1) - 1;
-    b[0] = 1, b[1] = u, b[2] = v, b[3] = u * u, b[4] = u * v, b[5] = v * v;
-  };
+  const double su = 2.0 / std::max(1, small.cols - 1), sv = 2.0 / std::max(1, small.rows - 1);
   cv::Mat use;
   cv::erode(cls, use, cv::Mat(), cv::Point(-1, -1), 1);  // away from the objects' blurred edges
+  std::vector<double> u(size_t(small.cols)), res(small.total());
+  for (int x = 0; x < small.cols; ++x) u[size_t(x)] = su * x - 1;
+  std::vector<double> rv;
   for (int round = 0; round < 2; ++round) {
-    cv::Mat A(0, 6, CV_64F), B(0, 1, CV_64F);
-    for (int y = 0; y < small.rows; ++y)
+    double m[5][5] = {}, g[3][3] = {};  // m[i][j] = sum u^i v^j, g[i][j] = sum grey u^i v^j
+    for (int y = 0; y < small.rows; ++y) {
+      const uchar* ur = use.ptr<uchar>(y);
+      const uchar* sr = small.ptr<uchar>(y);
+      double r[5] = {}, rg[3] = {};  // this row's sums of u^i and of grey u^i
       for (int x = 0; x < small.cols; ++x) {
-        if (!use.at<uchar>(y, x)) continue;
-        double b[6];
-        basis(x, y, b);
-        A.push_back(cv::Mat(1, 6, CV_64F, b));
-        B.push_back(double(small.at<uchar>(y, x)));
+        if (!ur[x]) continue;
+        const double a = u[size_t(x)], a2 = a * a, s = sr[x];
+        r[0] += 1, r[1] += a, r[2] += a2, r[3] += a2 * a, r[4] += a2 * a2;
+        rg[0] += s, rg[1] += s * a, rg[2] += s * a2;
       }
-    if (A.rows < 30 || !cv::solve(A, B, coef, cv::DECOMP_SVD)) return false;
-    cv::Mat r = cv::abs(A * coef - B);
-    std::vector<double> rv(r.begin<double>(), r.end<double>());
+      if (r[0] == 0) continue;
+      const double v = sv * y - 1;
+      double vp = 1;
+      for (int j = 0; j < 5; ++j, vp *= v) {
+        for (int i = 0; i + j < 5; ++i) m[i][j] += r[i] * vp;
+        for (int i = 0; i + j < 3; ++i) g[i][j] += rg[i] * vp;
+      }
+    }
+    if (m[0][0] < 30) return false;
+    // Basis 1, u, v, u^2, uv, v^2 as powers (i, j) of u and v.
+    static constexpr int pu[6] = {0, 1, 0, 2, 1, 0}, pv[6] = {0, 0, 1, 0, 1, 2};
+    cv::Matx66d ata;
+    cv::Vec6d atb;
+    for (int i = 0; i < 6; ++i) {
+      atb[i] = g[pu[i]][pv[i]];
+      for (int j = 0; j < 6; ++j) ata(i, j) = m[pu[i] + pu[j]][pv[i] + pv[j]];
+    }
+    cv::Mat c;
+    if (!cv::solve(cv::Mat(ata), cv::Mat(atb), c, cv::DECOMP_CHOLESKY) &&
+        !cv::solve(cv::Mat(ata), cv::Mat(atb), c, cv::DECOMP_SVD))
+      return false;
+    coef = c;
+    const double* k = c.ptr<double>();
+    rv.clear();
+    for (int y = 0; y < small.rows; ++y) {  // the surface along a row: a quadratic in u
+      const double v = sv * y - 1, c0 = k[0] + k[2] * v + k[5] * v * v, c1 = k[1] + k[4] * v;
+      const uchar* ur = use.ptr<uchar>(y);
+      const uchar* sr = small.ptr<uchar>(y);
+      double* rr = res.data() + size_t(y) * size_t(small.cols);
+      for (int x = 0; x < small.cols; ++x) {
+        if (!ur[x]) continue;
+        const double a = u[size_t(x)];
+        rv.push_back(rr[x] = std::abs(c0 + c1 * a + k[3] * a * a - sr[x]));
+      }
+    }
     std::nth_element(rv.begin(), rv.begin() + long(rv.size() / 2), rv.end());
     resid = 1.4826 * rv[rv.size() / 2];
-    int i = 0;  // second round: only the pixels that fit (drops a shadow or a pattern patch)
-    for (int y = 0; y < small.rows; ++y)
+    for (int y = 0; y < small.rows; ++y) {  // second round: only the pixels that fit (drops a shadow or a pattern patch)
+      uchar* ur = use.ptr<uchar>(y);
+      const double* rr = res.data() + size_t(y) * size_t(small.cols);
       for (int x = 0; x < small.cols; ++x)
-        if (use.at<uchar>(y, x) && r.at<double>(i++) > 3 * resid + 2) use.at<uchar>(y, x) = 0;
+        if (ur[x] && rr[x] > 3 * resid + 2) ur[x] = 0;
+    }
   }
   return true;
 }
