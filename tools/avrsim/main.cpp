@@ -180,8 +180,9 @@ int main(int argc, char** argv) {
                "figures in simulated cycles count the link, not the host's scheduling; the pty is then bridged in the "
                "simulation's thread (simavr's uart_pty thread, late under load, let simulated time run meanwhile)");
   app.add_option("--clock-file", clock_file,
-                 "benchmarks: a 16-byte file, mapped: the simulated time (cycles, u64 little-endian) at 0, kept "
-                 "current, so a host can time out on the board's clock; at 8 a byte the host sets to 1 while busy");
+                 "a 16-byte file, mapped: the simulated time (cycles, u64 little-endian) at 0, kept current, so a "
+                 "host can time out on the board's clock (the harness's --sim-clock, benchmarks); at 8 a byte the "
+                 "host sets to 1 while busy (--hold-for-host)");
   CLI11_PARSE(app, argc, argv);
 
   if (!fast) {
@@ -336,8 +337,8 @@ int main(int argc, char** argv) {
       }
     }
     board.set_uart_timing(uart_baud);
+    if (sim_clock) *sim_clock = avr->cycle;  // before the pump: a host never sees an answer before its time
     board.pump();
-    if (sim_clock) *sim_clock = avr->cycle;
     control_commands();
     const double now = now_s();
     if (max_seconds > 0 && now - started > max_seconds) {

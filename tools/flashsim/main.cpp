@@ -1,5 +1,7 @@
 // main.cpp - rbx1-avrboard: an Arduino Mega 2560 as it leaves the factory, under simavr: Debian's stk500v2
 // bootloader in the boot section, flash and EEPROM kept in files, UART0 on a pty with the auto-reset modelled.
+#include <fcntl.h>
+#include <sys/mman.h>
 #include <sys/resource.h>
 #include <termios.h>
 #include <unistd.h>
@@ -9,6 +11,7 @@
 #include <csignal>
 #include <cstdarg>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 #include <fstream>
 #include <iterator>
@@ -99,13 +102,16 @@ const char* kDebianBootloader =
 
 int main(int argc, char** argv) {
   CLI::App app{"rbx1-avrboard: an Arduino Mega 2560 with its stk500v2 bootloader under simavr, UART0 on a pty"};
-  std::string flash_file, eeprom_file, bootloader = kDebianBootloader;
+  std::string flash_file, eeprom_file, bootloader = kDebianBootloader, clock_file;
   double max_seconds = 0;
   app.add_option("--flash", flash_file, "the board's flash, kept in this file (created blank when missing)")
       ->required();
   app.add_option("--eeprom", eeprom_file, "the board's EEPROM, kept in this file across runs");
   app.add_option("--bootloader", bootloader, "bootloader HEX for the boot section")->capture_default_str();
   app.add_option("--max-seconds", max_seconds, "exit by itself after this many wall-clock seconds (0: never)");
+  app.add_option("--clock-file", clock_file,
+                 "a 16-byte file, mapped: the simulated time since start (cycles, u64 little-endian) at 0, kept "
+                 "current, so a host can time out on the board's clock (as rbx1-avrsim's; bytes 8-15 unused)");
   CLI11_PARSE(app, argc, argv);
 
   if (setpriority(PRIO_PROCESS, 0, -10) != 0) errno = 0;  // real time on a busy machine (root only)
@@ -139,6 +145,23 @@ int main(int argc, char** argv) {
   tio.c_cflag |= HUPCL;  // as a new serial tty has it (a new pty has it clear)
   tcsetattr(bridge.slave_fd(), TCSANOW, &tio);
 
+  // The board's clock for hosts that pace themselves on it (the harness's --clock-file): written before the pty
+  // path, so it exists once a host can talk. Monotonic across resets (avr->cycle is not).
+  volatile uint64_t* sim_clock = nullptr;
+  uint64_t sim_cycles = 0;
+  if (!clock_file.empty()) {
+    const int fd = ::open(clock_file.c_str(), O_RDWR | O_CREAT | O_TRUNC, 0644);
+    void* m = fd >= 0 && ftruncate(fd, 16) == 0 ? mmap(nullptr, 16, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0)
+                                                : MAP_FAILED;
+    if (m == MAP_FAILED) {
+      std::fprintf(stderr, "rbx1-avrboard: %s: %s\n", clock_file.c_str(), std::strerror(errno));
+      return 2;
+    }
+    ::close(fd);
+    sim_clock = static_cast<volatile uint64_t*>(m);
+    *sim_clock = 0;
+  }
+
   struct sigaction sa {};
   sa.sa_handler = on_signal;
   sigaction(SIGTERM, &sa, nullptr);
@@ -167,8 +190,10 @@ int main(int argc, char** argv) {
       }
       if (avr->cycle < start) break;  // the watchdog reset the core
     }
-    sim_s += hung ? static_cast<double>(slice) / kFrequency
-                  : static_cast<double>(avr->cycle >= start ? avr->cycle - start : avr->cycle) / kFrequency;
+    const avr_cycle_count_t ran = hung ? slice : avr->cycle >= start ? avr->cycle - start : avr->cycle;
+    sim_cycles += ran;
+    sim_s = static_cast<double>(sim_cycles) / kFrequency;
+    if (sim_clock) *sim_clock = sim_cycles;
     set_uart_timing(avr, uart0);
     bridge.pump();
     const bool boot_now = avr->pc >= kBootStart;

@@ -7,6 +7,7 @@ import json
 import os
 import re
 import shutil
+import struct
 import subprocess
 import sys
 import time
@@ -54,14 +55,21 @@ class BoardRun:
     # tests share it, and on a loaded machine they took more than the 220 s it once had (the board left mid-test).
     def __init__(self, tmp):
         self.flash, self.eeprom, self.log = tmp / "flash.bin", tmp / "eeprom.bin", tmp / "board.log"
+        self.clock = tmp / "clock"  # the simulated time, which the harness counts its timeouts on
         self.err = open(self.log, "w")
         self.proc = subprocess.Popen([AVRBOARD, "--flash", str(self.flash), "--eeprom", str(self.eeprom),
-                                      "--max-seconds", "400"], stdout=subprocess.PIPE, stderr=self.err, text=True)
+                                      "--clock-file", str(self.clock), "--max-seconds", "400"],
+                                     stdout=subprocess.PIPE, stderr=self.err, text=True)
         self.port = self.proc.stdout.readline().strip()
         assert self.port.startswith("/dev/pts/"), f"no pty path from rbx1-avrboard (got {self.port!r})"
 
     def events(self):
         return self.log.read_text()
+
+    def now(self):
+        """Seconds on the board's clock (its --clock-file): a loaded machine holds the simulation behind real time."""
+        with open(self.clock, "rb") as f:
+            return struct.unpack("<Q", f.read(8))[0] / 16e6
 
     def upload_seconds(self, since):
         """Simulated seconds from the last reset to the application's start (the bootloader leaves 0.1 s after
@@ -81,6 +89,7 @@ class BoardRun:
         stays until 5 s pass without a byte, so a host must not talk before (PROTOCOL.md's HELLO would keep it)."""
         since = len(self.events())
         link = Link(self.port, timeout=0.3, retries=30)  # patient: a loaded machine slows the simulation
+        link.clock = self.now  # and its timeouts count on the board's clock
         time.sleep(0.1)  # the board logs the open's reset within a slice of simulated time
         for _ in range(100):
             text = self.events()[since:]
@@ -181,7 +190,7 @@ def test_harness_passes_against_the_flashed_firmware(board):
     # avrdude's close dropped DTR: the harness's open resets the board, and --boot-wait lets the bootloader leave.
     since = len(board.events())
     r = subprocess.run([sys.executable, os.path.join(SRC, "tools", "rbx1-harness"), "--port", board.port,
-                        "--boot-wait", "3", "--clock-slack", "0.2"],  # paced as rbx1-avrsim is (harness_avrsim)
+                        "--boot-wait", "3", "--clock-file", str(board.clock)],  # on the board's clock
                        capture_output=True, text=True, timeout=150)
     assert "DTR asserted: reset" in board.events()[since:]
     assert r.returncode == 0 and "FAIL" not in r.stdout, r.stdout + r.stderr
@@ -210,9 +219,10 @@ def test_daemon_style_close_keeps_the_board_running(board):
     config_get(board, JOINT, MAX_SPEED)  # leaves the port closed with HUPCL clear
     since = len(board.events())
     with Link(board.port, timeout=0.3, retries=10) as link:
-        t0 = time.monotonic()
+        link.clock = board.now
+        t0 = board.now()
         link.hello()  # at once: a reset board would sit in its bootloader and not answer
-        assert time.monotonic() - t0 < 1.0
+        assert board.now() - t0 < 1.0
     assert "DTR asserted: reset" not in board.events()[since:], board.events()[since:]
 
 

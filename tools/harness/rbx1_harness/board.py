@@ -1,6 +1,8 @@
 """board.py - the device under test as the checks see it: requests through rbx1proto's Link, raw frames on the
 wire, STATUS polling, the simulator's control FIFO, and a known starting state before every check."""
+import mmap
 import os
+import struct
 import time
 
 from rbx1proto import frame, messages
@@ -11,15 +13,24 @@ from .runner import expect
 
 POLL_S = 0.02
 GLOBAL = messages.GLOBAL_JOINT
+CLOCK_HZ = 16_000_000  # a simulator's --clock-file counts cycles of its atmega2560 at 16 MHz (rbx1-avrsim, rbx1-avrboard)
 
 
 class Board:
-    def __init__(self, port, baud=115200, control=None, timeout=0.3, retries=10, boot_wait=0.0):
+    def __init__(self, port, baud=115200, control=None, timeout=0.3, retries=10, boot_wait=0.0, clock_file=None):
         self.port, self.baud = port, baud
         self.clock_slack = 0.0  # how far the device's clock may lag the wall clock and then catch up (--clock-slack)
+        # The device's own clock when a simulator shares it (--clock-file: its simulated cycles): every timeout,
+        # silence and duration of the checks is then counted on it, so a simulator that a loaded machine holds
+        # behind real time is neither timed out early nor left silent for less of its time than a check meant.
+        self.sim_clock = None
+        if clock_file:
+            with open(clock_file, "r+b") as f:
+                self.sim_clock = mmap.mmap(f.fileno(), 16)
         # More patient than a host must be (100 ms, 5 retransmissions): the checks test the device, and a busy test
         # machine can deschedule this process past 100 ms. The answer time itself is checked in response_time.
         self.link = Link(port, baudrate=baud, timeout=timeout, retries=retries)
+        self.link.clock = self.now
         self.control_path = control
         self.control = None
         if control:
@@ -33,7 +44,7 @@ class Board:
             expect(self.control is not None, f"{control}: no simulator reads this control FIFO")
         # Opening a Mega's port (DTR) may have reset it: its stk500v2 bootloader takes a byte arriving in its first
         # 0.83 s as an upload starting, and then stays until 5.2 s pass without one (tools/flashsim/README.md).
-        time.sleep(boot_wait)
+        self.sleep(boot_wait)
         try:
             self.info = self.link.hello()
         except LinkError as e:
@@ -51,6 +62,25 @@ class Board:
         self.link.close()
         if self.control:
             self.control.close()
+        if self.sim_clock:
+            self.sim_clock.close()
+
+    # --- the device's clock ---------------------------------------------------------------------------------
+    def now(self):
+        """Seconds on the device's clock: the simulator's (--clock-file), else the wall clock (a real board's and
+        rbx1-simfw's clocks keep it)."""
+        if self.sim_clock:
+            return struct.unpack_from("<Q", self.sim_clock, 0)[0] / CLOCK_HZ
+        return time.monotonic()
+
+    def sleep(self, seconds):
+        """Silence of `seconds` on the device's clock."""
+        if not self.sim_clock:
+            time.sleep(seconds)
+            return
+        end = self.now() + seconds
+        while (left := end - self.now()) > 0:
+            time.sleep(min(left, 0.005))
 
     # --- requests -------------------------------------------------------------------------------------------
     def req(self, msg_type, **fields):
@@ -85,12 +115,12 @@ class Board:
     # --- waiting --------------------------------------------------------------------------------------------
     def wait(self, pred, timeout, what):
         """Polls STATUS (which also feeds the heartbeat) until pred(status) holds; returns that status."""
-        end = time.monotonic() + timeout
+        end = self.now() + timeout
         while True:
             s = self.status()
             if pred(s):
                 return s
-            expect(time.monotonic() < end, f"timed out after {timeout} s waiting for {what}; last STATUS {brief(s)}")
+            expect(self.now() < end, f"timed out after {timeout} s waiting for {what}; last STATUS {brief(s)}")
             time.sleep(POLL_S)
 
     def wait_idle(self, timeout=10.0):  # generous: a simulator on a busy host can run well below real time
@@ -105,8 +135,8 @@ class Board:
         so the check's own failure is the one reported."""
         try:
             self.req(MsgType.STOP)
-            end = time.monotonic() + 5.0
-            while self.status()["state"] not in (State.IDLE, State.FAULT) and time.monotonic() < end:
+            end = self.now() + 5.0
+            while self.status()["state"] not in (State.IDLE, State.FAULT) and self.now() < end:
                 time.sleep(POLL_S)
             self.req(MsgType.CLEAR_FAULT)
         except (AssertionError, LinkError):
@@ -138,9 +168,9 @@ class Board:
         self.link.send_raw(data)
         dec = frame.Decoder()
         events = []
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            ser.timeout = max(0.001, end - time.monotonic())
+        end = self.now() + timeout
+        while self.now() < end:
+            ser.timeout = max(0.001, end - self.now())
             b = ser.read(1)
             if b:
                 events += dec.feed(b + ser.read(ser.in_waiting))

@@ -1,5 +1,4 @@
 """checks_config.py - CONFIG_GET/SET/RESET: defaults, ranges, unknown keys and joints, EEPROM across a reset."""
-import time
 
 from rbx1proto.messages import KEY_INFO, Key, MsgType, Status
 
@@ -76,7 +75,7 @@ def config_survives_reset(b):
     b.set(GLOBAL, Key.GRIPPER_MAX_US, 2222)
     try:
         b.ctl("reset")
-        time.sleep(0.3)
+        b.sleep(0.3)
         b.link.ser.reset_input_buffer()
         b.link.hello()
         s = b.status()

@@ -1,6 +1,5 @@
 """checks_safety.py - ESTOP by message and by input, limit switches, heartbeat loss: all stop motion and latch
 their fault until CLEAR_FAULT."""
-import time
 
 from rbx1proto import frame
 from rbx1proto.messages import Fault, Input, Key, MsgType, State, Status
@@ -13,7 +12,7 @@ from .runner import check, expect
 
 def frozen(b, s, what):
     """Positions no longer change after a stop."""
-    time.sleep(0.15)
+    b.sleep(0.15)
     s2 = b.status()
     expect(s2["position"] == s["position"], f"still stepping after {what}: {s['position']} -> {s2['position']}")
     expect(0 < s["position"][0] < LONG[0], f"{what} did not interrupt the move: {brief(s)}")
@@ -107,16 +106,17 @@ def limit_switch_latches(b):
 def heartbeat_loss(b):
     b.set(0xFF, Key.HEARTBEAT_MS, 200)
     try:
-        time.sleep(0.4)  # IDLE: silence is allowed
+        b.sleep(0.4)  # IDLE: silence is allowed
         s = b.status()
         expect(latching(s["faults"]) == 0 and s["state"] == State.IDLE, f"heartbeat fault while IDLE: {brief(s)}")
         # Silence while MOVING must end in a controlled stop and HEARTBEAT_LOST. A simulator starved of CPU runs
-        # slower than the wall clock, so the silence grows until it spans 200 ms of the board's own time.
+        # slower than the wall clock, so without its clock (--clock-file) the silence grows until it spans 200 ms of
+        # the board's own time; on its clock the first one does.
         for silence in (0.6, 1.5, 3.0, 6.0):
             r = b.move([4000, 0, 0, 0, 0, 0], 8000)  # slow: still moving when the silence ends
             expect(r["status"] == Status.OK, f"MOVE: {r}")
             b.wait(lambda s: s["position"][0] > 0 or s["state"] == State.FAULT, 2.0, "the move to start")
-            time.sleep(silence)
+            b.sleep(silence)
             s = b.wait(lambda s: s["state"] != State.STOPPING, 2.0, "the controlled stop to end")
             if s["state"] == State.FAULT:
                 break
@@ -127,7 +127,7 @@ def heartbeat_loss(b):
                f"no HEARTBEAT_LOST after {silence} s of silence while moving: {brief(s)}")
         expect(s["queue_free"] == b.queue_size, f"queue not flushed: {brief(s)}")
         expect(0 < s["position"][0] < 4000, f"the move was not interrupted: {brief(s)}")
-        time.sleep(0.15)
+        b.sleep(0.15)
         expect(b.status()["position"] == s["position"], "still stepping after heartbeat loss")
         clears(b)
     finally:

@@ -26,6 +26,10 @@ def main(argv=None):
     ap.add_argument("--clock-slack", type=float, default=0.0,
                     help="seconds the device's clock may run behind the wall clock and catch up (a simulator paced "
                          "to real time that fell behind: rbx1-avrsim); 0 for a real board and rbx1-simfw")
+    ap.add_argument("--clock-file", help="the simulator's clock (its --clock-file: rbx1-avrsim, rbx1-avrboard): "
+                                         "timeouts, silences and durations count on it, not on the wall clock")
+    ap.add_argument("--sim-clock", action="store_true",
+                    help="with --sim: give the simulator a private --clock-file and count on it (rbx1-avrsim)")
     ap.add_argument("-k", action="append", dest="select", help="run only checks whose name contains this")
     ap.add_argument("--list", action="store_true", help="list the checks and exit")
     args = ap.parse_args(argv)
@@ -39,11 +43,13 @@ def main(argv=None):
     sim = None
     try:
         if args.sim:
-            sim = Simulator(args.sim, args.sim_arg)
+            sim = Simulator(args.sim, args.sim_arg, clock=args.sim_clock)
             args.port, args.control = sim.port, sim.control
+            args.clock_file = sim.clock_file or args.clock_file
             print(f"# {' '.join(sim.args)} -> {sim.port}")
         try:
-            board = Board(args.port, args.baud, args.control, args.timeout, args.retries, args.boot_wait)
+            board = Board(args.port, args.baud, args.control, args.timeout, args.retries, args.boot_wait,
+                          args.clock_file)
             board.clock_slack = args.clock_slack
         except (LinkError, OSError, AssertionError) as e:
             print(f"FAIL  connect: {args.port}: {e}")

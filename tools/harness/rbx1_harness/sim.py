@@ -1,5 +1,5 @@
-"""sim.py - starts a simulator (rbx1-simfw or rbx1-avrsim) with a private control FIFO and EEPROM file, reads
-its pty path from the first stdout line, and stops it (control `quit`, then SIGTERM)."""
+"""sim.py - starts a simulator (rbx1-simfw or rbx1-avrsim) with a private control FIFO and EEPROM file (and clock
+file, on request), reads its pty path from the first stdout line, and stops it (control `quit`, then SIGTERM)."""
 import os
 import signal
 import subprocess
@@ -7,12 +7,14 @@ import tempfile
 
 
 class Simulator:
-    def __init__(self, command, extra=()):
+    def __init__(self, command, extra=(), clock=False):
         self.dir = tempfile.TemporaryDirectory(prefix="rbx1-harness-")
         self.control = os.path.join(self.dir.name, "control.fifo")
         os.mkfifo(self.control)
         self.eeprom = os.path.join(self.dir.name, "eeprom.bin")
-        self.args = [command, "--control", self.control, "--eeprom", self.eeprom, *extra]
+        self.clock_file = os.path.join(self.dir.name, "clock") if clock else None  # written before the pty path
+        self.args = [command, "--control", self.control, "--eeprom", self.eeprom,
+                     *(["--clock-file", self.clock_file] if clock else []), *extra]
         self.proc = subprocess.Popen(self.args, stdout=subprocess.PIPE, text=True)
         self.port = self.proc.stdout.readline().strip()
         if not self.port.startswith("/dev/"):
