@@ -83,10 +83,11 @@ void unite(std::vector<Run>& runs, int a, int b) {
 // integer arithmetic only, so the results are the same either way).
 RBX1_AVX2_CLONES
 long long label_components(const cv::Mat& gray, const cv::Mat& background, int s, int low, int high, int first_label,
-                           cv::Mat& labels, std::vector<Component>& comps) {
+                           cv::Mat& labels, std::vector<Component>& comps, bool clear) {
   CV_Assert(gray.type() == CV_8U && background.type() == CV_8U && gray.size() == background.size());
   const int W = gray.cols, H = gray.rows;
   comps.clear();
+  if (clear) labels.create(gray.size(), CV_32S);
   if (W == 0 || H == 0) return 0;
   // Rows: the contrast (3 kept for the erosion), the eroded rows (3 kept for the dilation), each padded by one
   // pixel on both sides with the value that leaves the min (255) or the max (0) unchanged: OpenCV's borders for
@@ -175,7 +176,10 @@ long long label_components(const cv::Mat& gray, const cv::Mat& background, int s
     }
   }
   row_start[size_t(H)] = int(runs.size());
-  if (above_high == 0) return 0;  // nothing of this polarity reaches the high level: no components at all
+  if (above_high == 0) {  // nothing of this polarity reaches the high level: no components at all
+    if (clear) labels.setTo(0);
+    return 0;
+  }
 
   // One component per root; OpenCV's numbering: by the first 2x2 block (row pair, column pair) it occupies.
   const long long bw = (W + 1) / 2;
@@ -202,17 +206,25 @@ long long label_components(const cv::Mat& gray, const cv::Mat& background, int s
   struct Box { int x0 = INT32_MAX, y0 = INT32_MAX, x1 = -1, y1 = -1; };
   std::vector<Box> boxes(roots.size());
   comps.assign(roots.size(), Component{});
-  for (size_t i = 0; i < runs.size(); ++i) {
-    const Run& u = runs[i];
-    const int k = rank[size_t(comp_of[size_t(root_of(runs, int(i)))])];
-    Component& cp = comps[size_t(k)];
-    Box& bx = boxes[size_t(k)];
-    cp.area += u.x1 - u.x0 + 1;
-    cp.strong = cp.strong || u.strong;
-    bx.x0 = std::min(bx.x0, u.x0), bx.x1 = std::max(bx.x1, u.x1);
-    bx.y0 = std::min(bx.y0, u.y), bx.y1 = std::max(bx.y1, u.y);
-    int* lr = labels.ptr<int>(u.y);
-    std::fill(lr + u.x0, lr + u.x1 + 1, first_label + k);
+  // Row by row (a row's runs are consecutive, left to right); with `clear` the gaps between runs are zeroed in
+  // the same sweep, so the frame's labels are written once instead of zero-filled first.
+  for (int y = 0; y < H; ++y) {
+    int* lr = labels.ptr<int>(y);
+    int x = 0;
+    for (int i = row_start[size_t(y)]; i < row_start[size_t(y) + 1]; ++i) {
+      const Run& u = runs[size_t(i)];
+      const int k = rank[size_t(comp_of[size_t(root_of(runs, i))])];
+      Component& cp = comps[size_t(k)];
+      Box& bx = boxes[size_t(k)];
+      cp.area += u.x1 - u.x0 + 1;
+      cp.strong = cp.strong || u.strong;
+      bx.x0 = std::min(bx.x0, u.x0), bx.x1 = std::max(bx.x1, u.x1);
+      bx.y0 = std::min(bx.y0, u.y), bx.y1 = std::max(bx.y1, u.y);
+      if (clear) std::fill(lr + x, lr + u.x0, 0);
+      std::fill(lr + u.x0, lr + u.x1 + 1, first_label + k);
+      x = u.x1 + 1;
+    }
+    if (clear) std::fill(lr + x, lr + W, 0);
   }
   for (size_t k = 0; k < comps.size(); ++k)
     comps[k].box = cv::Rect(boxes[k].x0, boxes[k].y0, boxes[k].x1 - boxes[k].x0 + 1, boxes[k].y1 - boxes[k].y0 + 1);

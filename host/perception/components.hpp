@@ -17,9 +17,11 @@ struct Component {
 // square (isolated noise pixels and hairlines dropped), is above `low`; 8-connected. Equal to thresholding
 // then opening then cv::connectedComponents (a flat opening commutes with a threshold), labels numbered as
 // OpenCV numbers them (by each component's first 2x2 block in raster order). Labels first_label,
-// first_label + 1, ... are written into `labels` (CV_32S, the frame's size, 0 elsewhere left untouched);
-// comps receives one entry per label. Returns the number of pixels above `high` (the cleaned foreground).
+// first_label + 1, ... are written into `labels` (CV_32S, the frame's size; without `clear`, other pixels are
+// left untouched); comps receives one entry per label. clear: `labels` is allocated to the frame's size when
+// it is not already and every other pixel is set to 0 in the same sweep (no separate zero fill). Returns the
+// number of pixels above `high` (the cleaned foreground).
 long long label_components(const cv::Mat& gray, const cv::Mat& background, int s, int low, int high, int first_label,
-                           cv::Mat& labels, std::vector<Component>& comps);
+                           cv::Mat& labels, std::vector<Component>& comps, bool clear = false);
 
 }  // namespace rbx1::vision

@@ -413,7 +413,7 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
   // One binary image per polarity (both in auto mode), labelled apart so that a dark and a light object
   // side by side stay two regions; their labels share one image.
   const std::vector<int> signs = con.sign == 0 ? std::vector<int>{-1, +1} : std::vector<int>{con.sign};
-  out.labels = cv::Mat(d.size(), CV_32S, cv::Scalar(0));
+  out.labels = cv::Mat(d.size(), CV_32S);  // zeroed by the first polarity's pass, as it writes its labels
   out.obstacle.assign(1, 0);
   out.sign.assign(1, 0);
   std::vector<Component> regions(1), comps;
@@ -427,7 +427,7 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
   for (int sg : signs) {
     // 8-bit contrast above t: above floor(t).
     fg_pixels += label_components(con.gray, con.background, sg, int(std::floor(low)), int(std::floor(out.threshold)),
-                                  int(regions.size()), out.labels, comps);
+                                  int(regions.size()), out.labels, comps, sg == signs.front());
     for (const Component& c : comps) {
       regions.push_back(c);
       out.sign.push_back(int8_t(sg));

@@ -63,6 +63,7 @@ int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreySh
   int total = 0;
   // The ratio gray / background on 0-255, min(255, 255 g / max(b, 1)), the division as a multiplication by
   // ceil(2^32 / max(b, 1)): exact for numerators under 2^16 (the error, under n (b - 1) / 2^32, stays under 1 / b).
+  // Tabled for every (background, grey) pair (64 KiB), so the per-pixel loop below is a lookup.
   static const auto reciprocal = [] {
     std::array<uint64_t, 256> t{};
     for (uint64_t b = 0; b < 256; ++b) {
@@ -72,22 +73,34 @@ int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreySh
     return t;
   }();
   auto ratio = [&](int g, int b) { return int(std::min<uint64_t>(255, (uint64_t(255 * g) * reciprocal[b]) >> 32)); };
+  static const std::vector<uchar> ratio_table = [&] {
+    std::vector<uchar> t(256 * 256);
+    for (int b = 0; b < 256; ++b)
+      for (int g = 0; g < 256; ++g) t[size_t(b * 256 + g)] = uchar(ratio(g, b));
+    return t;
+  }();
   for (size_t k = 0; k < regions.size(); ++k) {
     const int i = int(k) + 1;
     if (regions[k].area < 2 * opt.min_area_px) continue;
     const cv::Rect box = regions[k].box;
     const cv::Rect r = cv::Rect(box.x - 3, box.y - 3, box.width + 6, box.height + 6) & frame;
-    cv::Mat own = lab(r) == i;
-    // The ratio on the region's pixels (0 elsewhere) and its histogram over them (by column mod 4, so that
-    // equal neighbours do not wait on each other's count; bin 0 from the region's area).
-    cv::Mat q(r.size(), CV_8U);
+    // In one pass over the box: the region's pixels (`own`), the ratio on them (0 elsewhere) and its histogram
+    // over them (by column mod 4, so that equal neighbours do not wait on each other's count; bin 0 from the
+    // region's area).
+    cv::Mat own(r.size(), CV_8U), q(r.size(), CV_8U);
     int hist4[4][256] = {}, hist[256];
+    const uchar* table = ratio_table.data();  // (a local: byte stores may alias the vector's own pointer)
     for (int y = 0; y < r.height; ++y) {
-      const uchar* o = own.ptr<uchar>(y);
+      const int* lr = lab.ptr<int>(r.y + y) + r.x;
       const uchar* g = gray.ptr<uchar>(r.y + y) + r.x;
       const uchar* b = background.ptr<uchar>(r.y + y) + r.x;
+      uchar* o = own.ptr<uchar>(y);
       uchar* qq = q.ptr<uchar>(y);
-      for (int x = 0, w = r.width; x < w; ++x) hist4[x & 3][qq[x] = uchar(o[x] ? ratio(g[x], b[x]) : 0)]++;
+      for (int x = 0, w = r.width; x < w; ++x) {
+        const uchar m = uchar(-int(lr[x] == i));
+        o[x] = m;
+        hist4[x & 3][qq[x] = table[size_t(b[x]) * 256 + g[x]] & m]++;
+      }
     }
     hist[0] = regions[k].area;
     for (int v = 1; v < 256; ++v) hist[0] -= hist[v] = hist4[0][v] + hist4[1][v] + hist4[2][v] + hist4[3][v];

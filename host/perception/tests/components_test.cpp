@@ -1,5 +1,6 @@
 // components_test.cpp - the streamed binary image and run labelling against OpenCV's own steps (threshold,
-// 3x3 opening, connectedComponentsWithStats): the same labels, numbered the same, the same boxes and areas.
+// 3x3 opening, connectedComponentsWithStats): the same labels, numbered the same, the same boxes and areas,
+// also when the pass clears the rest of the label image itself.
 #include <gtest/gtest.h>
 
 #include <random>
@@ -49,12 +50,21 @@ void expect_same_as_opencv(const cv::Mat& gray, const cv::Mat& bg, int s, int lo
   if (on == 0) {
     EXPECT_TRUE(comps.empty());
     EXPECT_EQ(cv::countNonZero(labels), 0);
+    cv::Mat dirty(gray.size(), CV_32S, cv::Scalar(-5));
+    EXPECT_EQ(label_components(gray, bg, s, low, high, 7, dirty, comps, true), 0);
+    EXPECT_EQ(cv::countNonZero(dirty), 0) << "clear left pixels set";
     return;
   }
   ASSERT_EQ(int(comps.size()), n - 1);
   cv::Mat expected = lab + 6;
   expected.setTo(0, lab == 0);
   EXPECT_EQ(cv::countNonZero(expected != labels), 0) << "labels differ from OpenCV's";
+  // clear: the same labels written over a frame of garbage, every other pixel zeroed.
+  cv::Mat dirty(gray.size(), CV_32S, cv::Scalar(-5));
+  std::vector<Component> comps2;
+  ASSERT_EQ(label_components(gray, bg, s, low, high, 7, dirty, comps2, true), on);
+  EXPECT_EQ(cv::countNonZero(expected != dirty), 0) << "labels with clear differ from OpenCV's";
+  EXPECT_EQ(comps2.size(), comps.size());
   for (int i = 1; i < n; ++i) {
     const Component& k = comps[size_t(i - 1)];
     EXPECT_EQ(k.area, st.at<int>(i, cv::CC_STAT_AREA)) << i;
