@@ -96,6 +96,10 @@ void FakePeer::handle(const rbx1_frame& f) {
     --drop_seq_times;
     return;
   }
+  if (!request && drop_probes > 0) {
+    --drop_probes;
+    return;
+  }
   if (silence_after_type < 0) silence_left_ = -1;
   if (silence_left_ == 0) return;
   if (nak_next > 0) {

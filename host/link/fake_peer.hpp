@@ -33,6 +33,7 @@ class FakePeer {
   std::atomic<int> drop_next{0};       // ignore the next N frames of a request type (silence; probes pass)
   std::atomic<int> drop_seq{-1};       // ignore the next drop_seq_times frames of a request type with this SEQ
   std::atomic<int> drop_seq_times{0};
+  std::atomic<int> drop_probes{0};     // ignore the next N frames of no request type (the link's probes)
   std::atomic<int> nak_next{0};        // answer the next N frames with a NAK, unexecuted ...
   std::atomic<uint8_t> nak_reason{RBX1_BAD_CRC};  // ... of this reason
   std::atomic<int> corrupt_next{0};    // execute, but send the next N responses with a broken CRC

@@ -546,7 +546,18 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
         rbx1_frame_encode(frames[i].data(), RBX1_MAX_FRAME, ws[i].seq, reqs[i].type, reqs[i].payload, reqs[i].len));
     if (!sizes[i]) return -EINVAL;
   }
-  std::vector<Clock::time_point> sent_at(n);
+  // The timeout (PROTOCOL.md "Timeout"): a line model at the port's rate says when each copy's answer is due; the
+  // bytes written so far are out at line_out towards the firmware and line_back back (baud_ 0: no model, the fixed
+  // timeout alone).
+  std::vector<Clock::time_point> sent_at(n), due(n);
+  const std::chrono::duration<double> byte_time(baud_ > 0 ? 10.0 / baud_ : 0.0);
+  Clock::time_point line_out{}, line_back{};
+  auto model = [&](size_t out, size_t back) {
+    line_out += std::chrono::duration_cast<Clock::duration>(byte_time * static_cast<double>(out));
+    line_back = std::max(line_back, line_out) +
+                std::chrono::duration_cast<Clock::duration>(byte_time * static_cast<double>(back));
+    return line_back;
+  };
   std::vector<uint8_t> burst;
   uint32_t tx = 0;  // copies written, in order (Waiter::txs)
   size_t base = 0, next = 0;
@@ -557,8 +568,10 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
     burst.clear();
     for (size_t i : which) burst.insert(burst.end(), frames[i].begin(), frames[i].begin() + sizes[i]);
     auto now = Clock::now();
+    line_out = std::max(line_out, now);
     for (size_t i : which) {
       sent_at[i] = now;
+      due[i] = model(sizes[i], RBX1_FRAME_OVERHEAD + std::max(0, rbx1_response_len(ws[i].type)));
       ws[i].txs.push_back(++tx);
       ws[i].resend = false;
       if (ws[i].release_resend) ws[i].release_copy = tx;
@@ -569,6 +582,7 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
       uint8_t probe[RBX1_MAX_FRAME];
       const size_t len = rbx1_frame_encode(probe, sizeof probe, seq, RBX1_MSG_NAK, nullptr, 0);
       burst.insert(burst.end(), probe, probe + len);
+      model(len, RBX1_FRAME_OVERHEAD + RBX1_NAK_LEN);
       probes_.emplace_back(seq, ++tx);
       counters_.probes++;
     }
@@ -580,6 +594,20 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
   std::unique_lock<std::mutex> lock(state_mu_);
   probes_.clear();
   int tries = 0, result = 0;
+  int silences = 0;  // timeouts since the oldest unanswered request changed
+  Clock::time_point oldest_since = Clock::now();
+  // When silence about the oldest unanswered request i sends the window again: a quarter of the timeout, doubled by
+  // each silence since i became the oldest, after its latest copy's answer is due on the line model or after i
+  // became the oldest (a held request's answer follows the filler's), whichever is later, and never after the
+  // timeout. The slow types (EEPROM writes) wait their own time.
+  auto deadline = [&](size_t i) {
+    if (ws[i].type == RBX1_MSG_CONFIG_SET || ws[i].type == RBX1_MSG_CONFIG_RESET)
+      return sent_at[i] + std::chrono::milliseconds(std::max(timeout_ms_.load(), 1000));
+    const auto late = sent_at[i] + std::chrono::milliseconds(timeout_ms_.load());
+    if (baud_ <= 0) return late;
+    const auto margin = std::chrono::microseconds(timeout_ms_.load() * 250LL << std::min(silences, 8));
+    return std::min(late, std::max(due[i], oldest_since) + margin);
+  };
   while (base < n) {
     if (next < n && next - base < win) {  // fill the window
       std::vector<size_t> fresh;
@@ -592,22 +620,20 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
         break;
       }
     }
-    const int wait_ms = (ws[base].type == RBX1_MSG_CONFIG_SET || ws[base].type == RBX1_MSG_CONFIG_RESET)
-                            ? std::max(timeout_ms_.load(), 1000)
-                            : timeout_ms_.load();
-    auto deadline = sent_at[base] + std::chrono::milliseconds(wait_ms);
+    const auto until = deadline(base);
     auto pending = [&] {
       for (size_t i = base; i < next; ++i)
         if (!ws[i].done && (ws[i].resend || ws[i].nak)) return true;
       return false;
     };
-    state_cv_.wait_until(lock, deadline, [&] { return ws[base].done || pending() || !connected_; });
+    state_cv_.wait_until(lock, until, [&] { return ws[base].done || pending() || !connected_; });
     while (base < next && ws[base].done) {
       waiting_.erase(std::find(waiting_.begin(), waiting_.end(), &ws[base]));
       last_done_ = Clock::now();
       counters_.requests++;
       ++base;
-      tries = 0;
+      tries = silences = 0;
+      oldest_since = last_done_;
     }
     if (!connected_) {
       result = down_error();
@@ -625,9 +651,11 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
       if (ws[i].resend) again.push_back(i);
     }
     if (result) break;
-    bool timed_out = again.empty() && Clock::now() >= deadline;
+    // (base == next: the window moved on and the next requests are not written yet)
+    bool timed_out = again.empty() && base < next && Clock::now() >= deadline(base);
     if (timed_out) {  // silence: every unanswered request again, oldest first
       counters_.timeouts++;
+      ++silences;
       for (size_t i = base; i < next; ++i)
         if (!ws[i].done) again.push_back(i);
     }

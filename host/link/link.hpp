@@ -92,8 +92,9 @@ class Link {
   // Any request by type with a raw payload; resp receives the response payload (status first).
   int request(uint8_t type, const uint8_t* payload, uint8_t len, uint8_t* resp, uint8_t& resp_len);
 
-  // Sends reqs in order with up to window() in flight; go-back-N on a timeout of the oldest unanswered one or a NAK
-  // of one in flight. 0 when every one was answered; else a negative errno as request() gives it, with each
+  // Sends reqs in order with up to window() in flight (PROTOCOL.md "Window": resends driven by the answers, NAKs and
+  // probes; on a timeout of the oldest unanswered one, its deadline from the line model at the port's rate, every
+  // unanswered one again). 0 when every one was answered; else a negative errno as request() gives it, with each
   // request's `answered` saying whether its response arrived (the firmware runs requests in SEQ order, so an
   // answered request means every one before it was handled, answered or not).
   int stream(std::vector<StreamRequest>& reqs);

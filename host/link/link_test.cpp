@@ -176,7 +176,7 @@ TEST_F(LinkTest, RetransmitsAtOnceOnNak) {
 }
 
 TEST_F(LinkTest, UnknownTypeIsNotRetransmittedAndTakesNoSeq) {
-  link.set_timing(2000, 5);  // no timeout in this test, however loaded the machine
+  link.set_timing(4000, 5);  // no timeout in this test, however loaded the machine (a stream: 1 s past due)
   uint8_t resp[RBX1_MAX_PAYLOAD];
   uint8_t len = 0;
   uint8_t seq = link.next_seq();
@@ -199,7 +199,7 @@ TEST_F(LinkTest, UnknownTypeIsNotRetransmittedAndTakesNoSeq) {
 
 TEST_F(LinkTest, NakUnknownTypeOfARequestTypeIsAPlainNak) {
   // A NAK UNKNOWN_TYPE naming a request type's SEQ (a damaged or stale frame: nothing ran) is sent again.
-  link.set_timing(2000, 5);  // no timeout in this test, however loaded the machine
+  link.set_timing(4000, 5);  // no timeout in this test, however loaded the machine (a stream: 1 s past due)
   peer.nak_reason = RBX1_UNKNOWN_TYPE;
   peer.nak_next = 2;
   rbx1_move_resp r{};
@@ -234,7 +234,7 @@ TEST_F(LinkTest, CorruptResponseIsRetransmittedNotReExecuted) {
 }
 
 TEST_F(LinkTest, StreamKeepsTheWindowInFlight) {
-  link.set_timing(2000, 5);  // no timeout in this test, however loaded the machine
+  link.set_timing(4000, 5);  // no timeout in this test, however loaded the machine (a stream: 1 s past due)
   stream_all_ok(40, 0);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 40);
   EXPECT_EQ(peer.cached_replies(), 0);
@@ -256,6 +256,7 @@ TEST_F(LinkTest, StreamKeepsTheWindowInFlight) {
 }
 
 TEST_F(LinkTest, StreamHoldsTheFramesAfterALostRequest) {
+  link.set_timing(4000, 5);  // no timeout (it would send the held ones again), however loaded the machine
   peer.drop_next = 1;  // the stream's first frame vanishes: the peer holds the ones after it until it comes again
   stream_all_ok(20, 0);
   std::vector<int32_t> in_order(20);
@@ -270,7 +271,7 @@ TEST_F(LinkTest, StreamHeldAnswersLostAreSentAgain) {
   // The first frame vanishes, its 7 followers are held; when the gap is filled they all run and answer at once.
   // The filler's answer arrives broken: the held ones' answers show it ran (SEQ order), so it is sent again and
   // answered from memory, with no timeout.
-  link.set_timing(2000, 5);  // no timeout in this test, however loaded the machine
+  link.set_timing(4000, 5);  // no timeout in this test, however loaded the machine (a stream: 1 s past due)
   const int cached0 = peer.cached_replies();  // a HELLO sent again in SetUp (a loaded machine) is answered too
   peer.drop_next = 1;
   peer.corrupt_next = 1;  // HELD NAKs do not use it: the filler's answer is the next response
@@ -292,7 +293,7 @@ TEST_F(LinkTest, StreamResendsOnlyWhatTheAnswersShowLost) {
   // Answers and NAKs come back in the order of the copies written: a lost answer costs one resend of its request,
   // a lost request one resend of it alone (its followers are held: NAK HELD), nothing more (a timeout would resend
   // all).
-  link.set_timing(2000, 5);  // no timeout in this test, however loaded the machine
+  link.set_timing(4000, 5);  // no timeout in this test, however loaded the machine (a stream: 1 s past due)
   peer.corrupt_next = 1;  // the first answer arrives broken
   stream_all_ok(12, 0);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 12);
@@ -311,7 +312,7 @@ TEST_F(LinkTest, StreamLostResendIsSentAgainAfterTheProbeNotTheTimeout) {
   // The first request vanishes and so does its first resend (written when its followers came back held): the
   // probe written behind that resend is answered after it, which shows it lost, and it goes again at once. Without
   // the probe only the timeout (2 s here) would send it again: the count of timeouts tells.
-  link.set_timing(2000, 5);
+  link.set_timing(4000, 5);  // a stream's deadline: a quarter of it (1 s) after the answer is due
   const int cached0 = peer.cached_replies();  // a HELLO sent again in SetUp (a loaded machine) is answered too
   peer.drop_seq = link.next_seq();
   peer.drop_seq_times = 2;
@@ -330,7 +331,7 @@ TEST_F(LinkTest, StreamLostResendIsSentAgainAfterTheProbeNotTheTimeout) {
 
 TEST_F(LinkTest, StreamLostLastRequestIsSentAgainAfterTheProbe) {
   // Nothing follows the stream's last request but the probe: its NAK shows the request lost, without a timeout.
-  link.set_timing(2000, 5);
+  link.set_timing(4000, 5);  // a stream's deadline: a quarter of it (1 s) after the answer is due
   const int cached0 = peer.cached_replies();
   peer.drop_seq = static_cast<uint8_t>(link.next_seq() + 9);
   peer.drop_seq_times = 1;
@@ -341,6 +342,29 @@ TEST_F(LinkTest, StreamLostLastRequestIsSentAgainAfterTheProbe) {
   EXPECT_EQ(peer.cached_replies(), cached0);
   EXPECT_EQ(delta().timeouts, 0u);
   EXPECT_EQ(delta().retransmissions, 1u);
+}
+
+TEST_F(LinkTest, StreamSilenceTimesOutOnTheLineModelBeforeTheTimeout) {
+  // The stream's only request and the probe behind it vanish: nothing shows the loss but silence. The deadline is
+  // the answer's due time on the line model plus a quarter of the timeout (PROTOCOL.md "Timeout"): the request goes
+  // again about 1 s after the first copy, not after the 4 s of the timeout.
+  link.set_timing(4000, 5);
+  peer.drop_seq = link.next_seq();
+  peer.drop_seq_times = 1;
+  peer.drop_probes = 1;
+  const size_t rx0 = peer.received().size();
+  std::vector<rbx1_move_resp> out;
+  std::vector<bool> answered;
+  ASSERT_EQ(link.move_stream(move_batch(1, 0), out, answered), 0);
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 1);
+  EXPECT_EQ(delta().timeouts, 1u);
+  EXPECT_EQ(delta().retransmissions, 1u);
+  auto rx = peer.received();
+  ASSERT_GE(rx.size(), rx0 + 3);  // the request, its probe, the request again
+  EXPECT_EQ(rx[rx0 + 2].crc, rx[rx0].crc);
+  const auto gap = std::chrono::duration_cast<std::chrono::milliseconds>(rx[rx0 + 2].at - rx[rx0].at).count();
+  EXPECT_GE(gap, 500);   // not before its deadline (1 s past due; 500: the first copy may have been read late)
+  EXPECT_LT(gap, 3000);  // the fixed timeout could not resend it before 4000
 }
 
 TEST_F(LinkTest, StreamStopAndWaitWritesNoProbe) {
@@ -354,7 +378,9 @@ TEST_F(LinkTest, StreamStopAndWaitWritesNoProbe) {
 }
 
 TEST_F(LinkTest, StreamLinkDownSaysWhichWereAnswered) {
-  link.set_timing(250, 2);  // down after 3 silences of 250 ms: the peer's three answers come well before that
+  // Down after 3 silences (125, 250 and 500 ms past the answers' due times on the line model, PROTOCOL.md
+  // "Timeout"): the peer's three answers come well before that.
+  link.set_timing(500, 2);
   peer.silence_after_type = RBX1_MSG_MOVE;  // three MOVEs run and are answered, then the line dies
   peer.silence_after_count = 2;
   std::vector<rbx1_move_resp> out;

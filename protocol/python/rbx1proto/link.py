@@ -53,6 +53,9 @@ class Link:
         self.timeouts = 0  # stream(): silences that sent every unanswered request again
         self.probes = 0    # stream(): probes written (PROTOCOL.md "Probe")
         self.probe = True  # stream() writes probes (benchmarks turn them off for a baseline)
+        self.fixed_timeout = False  # stream() times out after `timeout` alone, no line model (a benchmark baseline)
+        self.causes = {}   # stream(): frames sent again, by what showed them lost (benchmarks print it)
+        self.probes_answered = 0  # stream(): probes whose NAK came
         self.max_window = window  # a cap on the firmware's window (None: the firmware's)
         self.window = 1           # requests in flight in stream(): min(max_window, HELLO's window)
         self.baudrate = baudrate
@@ -133,8 +136,10 @@ class Link:
         about its latest copy. A NAK HELD says the firmware holds that request and runs it once the gap before it is
         filled: it is not sent again (its answer comes when it runs; an answer of a held request says nothing of the
         others). Each event is attributed to a copy by counting (the k-th event naming a request comes from its k-th
-        copy or a later one), never by timing. When the oldest unanswered request has had no answer for the timeout,
-        every unanswered one is sent again from the oldest, held ones included. The firmware answers those it had
+        copy or a later one), never by timing. When the oldest unanswered request has had no answer by its deadline
+        (PROTOCOL.md "Timeout": its latest copy's answer due on a model of the line at `baudrate`, plus a quarter of the
+        timeout, doubled by each timeout since; never after the timeout), every unanswered one is sent again from the
+        oldest, held ones included. The firmware answers those it had
         executed from its window, and held ones HELD again. A write after which nothing more can go out (the window
         full, or the stream's last request written) that carries resends or the last request is followed by a probe
         (PROTOCOL.md "Probe"): its NAK comes after the answers of every copy written before it, so a lost resend or a
@@ -149,7 +154,11 @@ class Link:
             self.seq = (self.seq + 1) & 0xFF
         n, win = len(frames), max(1, self.window)
         results = [None] * n
-        sent_at = [0.0] * n      # the latest copy's time (the timeout)
+        sent_at = [0.0] * n      # the latest copy's time (the timeout of the slow types)
+        due = [0.0] * n          # when the latest copy's answer is due on the line model (the timeout)
+        answer = [frame.OVERHEAD + max(0, messages.response_len(t)) for t, _, _ in frames]  # answer bytes
+        byte_time = 10.0 / self.baudrate if self.baudrate else 0.0
+        line = [0.0, 0.0]        # when the bytes written so far are out: towards the firmware, and back
         txs = [[] for _ in range(n)]  # every copy's place in the order of all copies written
         events = [0] * n         # answers and NAKs naming the request (the k-th is about copy k or later)
         held = [False] * n       # the firmware said it holds the request (NAK HELD): not lost, not to resend
@@ -157,15 +166,32 @@ class Link:
         by_release = set()       # requests to send again for that reason in this round
         probes = []              # (SEQ, copy number) of the probes written whose NAK has not come, oldest first
         tx = 0
-        base = nxt = tries = 0
+        base = nxt = tries = silences = 0  # silences: timeouts since the oldest unanswered request changed
+        oldest_since = 0.0
+        last_timeout_tx = 0
+        cause = {}
+
+        def mark(i, why):
+            again.add(i)
+            cause.setdefault(i, why)
+
+        def model(nbytes, back):
+            """The line model (PROTOCOL.md "Timeout"): a frame written now arrives after the bytes written before it,
+            and its answer goes back after it arrived and after the answers before it; returns when that answer is
+            out."""
+            line[0] += nbytes * byte_time
+            line[1] = max(line[1], line[0]) + back * byte_time
+            return line[1]
 
         def send(which, resent):
             nonlocal tx
             now = self.clock()
+            line[0] = max(line[0], now)
             for i in which:
                 tx += 1
                 txs[i].append(tx)
                 sent_at[i] = now
+                due[i] = model(len(frames[i][2]), answer[i])
                 if i in by_release:
                     release_copy[i] = tx
             by_release.clear()
@@ -176,6 +202,7 @@ class Link:
                 seq = (frames[base][1] - 1) & 0xFF  # never in flight: answered before the oldest unanswered one
                 probes.append((seq, tx))
                 data += frame.encode(seq, PROBE_TYPE, b"")
+                model(frame.OVERHEAD, frame.OVERHEAD + 1)
                 self.probes += 1
             self.write(data)
 
@@ -190,22 +217,38 @@ class Link:
                     return copy
             return None
 
+        def deadline(i, silences):
+            """When silence about request i (the oldest unanswered) sends the window again (PROTOCOL.md "Timeout"): a
+            quarter of the timeout, doubled by each silence since i became the oldest, after its latest copy's answer
+            is due on the line model or after i became the oldest (a held request's answer follows the filler's),
+            whichever is later, and never after the timeout; the slow types wait their own time."""
+            if frames[i][0] in SLOW_TYPES:
+                return sent_at[i] + max(self.timeout, SLOW_TIMEOUT)
+            late = sent_at[i] + self.timeout
+            if not byte_time or self.fixed_timeout:
+                return late
+            return min(late, max(due[i], oldest_since) + self.timeout / 4 * 2 ** silences)
+
         while base < n:
             if nxt < n and nxt - base < win:
                 fresh = list(range(nxt, min(n, base + win)))
                 nxt = fresh[-1] + 1
                 send(fresh, False)
-            wait = max(self.timeout, SLOW_TIMEOUT) if frames[base][0] in SLOW_TYPES else self.timeout
             again = set()
-            for ev in self._read_events(sent_at[base] + wait - self.clock()):
+            cause.clear()
+            for ev in self._read_events(deadline(base, silences) - self.clock()):
                 if isinstance(ev, frame.Reject):
                     self.rejects += 1
                     continue
                 copy = probe_answered(ev)
                 if copy is not None:
+                    self.probes_answered += 1
+                    if copy < last_timeout_tx:
+                        self.causes["late_probe_nak"] = self.causes.get("late_probe_nak", 0) + 1
                     # Every unanswered request not held whose latest copy went out before the probe lost it.
-                    again.update(j for j in range(base, nxt)
-                                 if results[j] is None and not held[j] and txs[j][-1] < copy)
+                    for j in range(base, nxt):
+                        if results[j] is None and not held[j] and txs[j][-1] < copy:
+                            mark(j, "probe")
                     continue
                 k = (ev.seq - frames[base][1]) & 0xFF
                 if k >= nxt - base:
@@ -221,7 +264,7 @@ class Link:
                         # it is not counted; naming the oldest unanswered one it sends that again (at worst a copy
                         # answered from the firmware's memory).
                         if i == base:
-                            again.add(i)
+                            mark(i, "bad_crc_nak")
                         continue
                 events[i] += 1
                 copy = txs[i][min(events[i], len(txs[i])) - 1]  # the earliest copy this event can be about
@@ -233,7 +276,7 @@ class Link:
                     if held[i]:
                         again.discard(i)
                     elif copy == txs[i][-1]:
-                        again.add(i)  # its latest copy was refused
+                        mark(i, "refused")  # its latest copy was refused
                 else:
                     try:
                         results[i] = messages.unpack_response(frames[i][0], ev.payload)
@@ -247,7 +290,7 @@ class Link:
                         # Not again for the other answers of the same release (they show nothing newer).
                         if results[j] is None and (held[j] or held[i]) and (held[j] or release_copy[j] != txs[j][-1]):
                             held[j] = False
-                            again.add(j)
+                            mark(j, "release")
                             by_release.add(j)
                     if held[i]:
                         continue
@@ -255,18 +298,22 @@ class Link:
                 # this copy lost it (the frame, or its answer).
                 for j in range(base, nxt):
                     if j != i and results[j] is None and not held[j] and txs[j][-1] < copy:
-                        again.add(j)
+                        mark(j, "answer" if ev.type != MsgType.NAK else "nak_" + Status(reason).name.lower())
             if results[base] is not None:
                 while base < nxt and results[base] is not None:
                     base += 1
-                tries = 0
+                tries = silences = 0
+                oldest_since = self.clock()
             if base == n:
                 break
-            wait = max(self.timeout, SLOW_TIMEOUT) if frames[base][0] in SLOW_TYPES else self.timeout
             again = sorted(j for j in again if results[j] is None)
-            if not again and self.clock() >= sent_at[base] + wait:
+            if not again and base < nxt and self.clock() >= deadline(base, silences):
                 again = [i for i in range(base, nxt) if results[i] is None]  # silence: go back from the oldest
                 self.timeouts += 1 if again else 0
+                silences += 1
+                last_timeout_tx = tx
+                for i in again:
+                    cause.setdefault(i, "timeout_probe_lost" if probes else "timeout_no_probe")
             if again:
                 if again[0] == base:
                     tries += 1
@@ -275,6 +322,9 @@ class Link:
                         raise LinkError(f"{frames[base][0].name} seq {frames[base][1]}: no response after "
                                         f"{self.retries} retransmissions")
                 self.retransmissions += len(again)
+                for i in again:
+                    why = cause.pop(i, "?")
+                    self.causes[why] = self.causes.get(why, 0) + 1
                 send(again, True)
         return results
 

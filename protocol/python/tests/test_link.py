@@ -43,6 +43,8 @@ class Peer(threading.Thread):
         self.rng = random.Random(7)
         self.drop = 0           # ignore the next N requests entirely (frames of a request type: not the link's probes)
         self.drop_seq = {}      # SEQ -> how many more frames with that SEQ to ignore entirely
+        self.drop_probes = 0    # ignore the next N frames of no request type (the link's probes)
+        self.times = []         # when each frame of `received` was read (time.monotonic())
         self.probes = 0         # frames of no request type NAKed UNKNOWN_TYPE (the link's probes)
         self.nak = 0            # answer the next N requests with a NAK instead
         self.nak_reason = Status.BAD_CRC  # the reason those NAKs give
@@ -76,7 +78,11 @@ class Peer(threading.Thread):
 
     def handle(self, f):
         self.received.append(frame.encode(f.seq, f.type, f.payload))
+        self.times.append(time.monotonic())
         if self.silent:
+            return
+        if self.drop_probes and messages.request_len(f.type) < 0:
+            self.drop_probes -= 1
             return
         if self.drop and messages.request_len(f.type) >= 0:
             self.drop -= 1
@@ -351,7 +357,7 @@ def test_a_port_that_takes_nothing_fails_the_write():
 
 def test_stream_keeps_the_window_in_flight(pty_pair):
     link, peer = pty_pair
-    link.timeout = 2.0  # no timeout in this test, however loaded the machine (0.25 s fired once at load 15)
+    link.timeout = 4.0  # no timeout in this test, however loaded the machine (0.25 s fired once at load 15)
     link.hello()
     rs = stream_moves(link, 40)
     assert [r["status"] for r in rs] == [Status.OK] * 40
@@ -424,7 +430,7 @@ def test_unknown_type_takes_no_seq(pty_pair):
     # A frame of an unknown type is NAKed UNKNOWN_TYPE and its SEQ stays the next in order: a request with that SEQ
     # runs (not a duplicate, not SEQ_OLD), and the HELLO after it reports that request as the last one answered.
     link, peer = pty_pair
-    link.timeout = 2.0  # no timeout in this test, however loaded the machine
+    link.timeout = 4.0  # no timeout in this test, however loaded the machine (a stream: 1 s past due)
     link.hello()
     seq = link.seq
     link.send_raw(frame.encode(seq, 0x33, b""))
@@ -440,7 +446,7 @@ def test_stream_resends_only_what_the_answers_show_lost(pty_pair):
     # Answers and NAKs come back in the order of the copies written: a lost answer costs one resend of its request,
     # a lost request one resend of it alone (its followers are held: NAK HELD), nothing more (a timeout resends all).
     link, peer = pty_pair
-    link.timeout = 2.0  # no timeout in this test, however loaded the machine
+    link.timeout = 4.0  # no timeout in this test, however loaded the machine (a stream: 1 s past due)
     link.hello()
     peer.lose = 1  # the first answer is lost
     stream_moves(link, 12)
@@ -457,7 +463,7 @@ def test_stream_lost_filler_answer_is_sent_again_once(pty_pair):
     # held ones' answers (each written on its own) show it ran: it is sent again once, answered from memory, with
     # no timeout, however the answers are split between reads.
     link, peer = pty_pair
-    link.timeout = 2.0  # no timeout in this test, however loaded the machine
+    link.timeout = 4.0  # no timeout in this test, however loaded the machine (a stream: 1 s past due)
     link.hello()
     peer.drop, peer.lose = 1, 1
     rs = stream_moves(link, 10)
@@ -469,9 +475,9 @@ def test_stream_lost_filler_answer_is_sent_again_once(pty_pair):
 def test_stream_lost_resend_is_sent_again_after_the_probe_not_the_timeout(pty_pair):
     # The first request vanishes and so does its first resend (written when its followers came back held): the
     # probe written behind that resend is answered after it, which shows it lost; it goes again at once. Today's
-    # rule without the probe waited for the timeout (2 s here: the count of timeouts tells).
+    # rule without the probe waited for the timeout (1 s past due here: the count of timeouts tells).
     link, peer = pty_pair
-    link.timeout = 2.0
+    link.timeout = 4.0  # a stream's deadline: a quarter of it (1 s) after the answer is due
     link.hello()
     peer.drop_seq = {link.seq: 2}
     rs = stream_moves(link, 10)
@@ -484,13 +490,31 @@ def test_stream_lost_resend_is_sent_again_after_the_probe_not_the_timeout(pty_pa
 def test_stream_lost_last_request_is_sent_again_after_the_probe(pty_pair):
     # Nothing follows the stream's last request but the probe: its NAK shows the request lost, without a timeout.
     link, peer = pty_pair
-    link.timeout = 2.0
+    link.timeout = 4.0  # a stream's deadline: a quarter of it (1 s) after the answer is due
     link.hello()
     peer.drop_seq = {(link.seq + 9) & 0xFF: 1}
     rs = stream_moves(link, 10)
     assert [r["status"] for r in rs] == [Status.OK] * 10
     assert peer.moves == list(range(10)) and peer.duplicates == 0
     assert link.timeouts == 0 and link.retransmissions == 1
+
+
+def test_stream_silence_times_out_on_the_line_model_before_the_timeout(pty_pair):
+    # The stream's only request and the probe behind it vanish: nothing shows the loss but silence. The deadline is
+    # the answer's due time on the line model plus a quarter of the timeout (PROTOCOL.md "Timeout"): the request
+    # goes again about 1 s after the first copy, not after the 4 s of the timeout.
+    link, peer = pty_pair
+    link.timeout = 4.0
+    link.hello()
+    peer.drop_seq = {link.seq: 1}
+    peer.drop_probes = 1
+    rx0, resent0 = len(peer.received), link.retransmissions  # a loaded machine may have resent the HELLO
+    rs = stream_moves(link, 1)
+    assert [r["status"] for r in rs] == [Status.OK] and peer.moves == [0]
+    assert link.timeouts == 1 and link.retransmissions - resent0 == 1
+    assert len(peer.received) >= rx0 + 3 and peer.received[rx0 + 2] == peer.received[rx0]  # request, probe, again
+    gap = peer.times[rx0 + 2] - peer.times[rx0]
+    assert 0.5 <= gap < 3.0  # not before its deadline (1 s past due; the first copy may be read late), not at 4 s
 
 
 def test_stream_stop_and_wait_writes_no_probe(pty_pair):
@@ -505,7 +529,7 @@ def test_stream_held_then_estop_runs_nothing_held_and_resends(pty_pair):
     # The firmware drops held requests on ESTOP (NAK SEQ_GAP each): the stream sends them again and each runs
     # once, in order, after the missing one.
     link, peer = pty_pair
-    link.timeout = 2.0  # no timeout in this test, however loaded the machine
+    link.timeout = 4.0  # no timeout in this test, however loaded the machine (a stream: 1 s past due)
     link.hello()
     peer.drop = 1
     orig = peer.handle
@@ -527,7 +551,7 @@ def test_stream_bad_crc_naks_naming_other_requests_resend_nothing(pty_pair):
     # neither counted nor acted on (counted, it would make that request's later answers look like its latest
     # copy's and resend everything written before).
     link, peer = pty_pair
-    link.timeout = 2.0  # no timeout in this test, however loaded the machine
+    link.timeout = 4.0  # no timeout in this test, however loaded the machine (a stream: 1 s past due)
     link.hello()
     peer.nak_next_seq = True
     rs = stream_moves(link, 30)
