@@ -56,6 +56,7 @@ class Link:
         self.fixed_timeout = False  # stream() times out after `timeout` alone, no line model (a benchmark baseline)
         self.causes = {}   # stream(): frames sent again, by what showed them lost (benchmarks print it)
         self.probes_answered = 0  # stream(): probes whose NAK came
+        self.needless_timeouts = 0  # stream(): timeouts a probe's NAK came after, that probe written before them
         self.max_window = window  # a cap on the firmware's window (None: the firmware's)
         self.window = 1           # requests in flight in stream(): min(max_window, HELLO's window)
         self.baudrate = baudrate
@@ -244,7 +245,7 @@ class Link:
                 if copy is not None:
                     self.probes_answered += 1
                     if copy < last_timeout_tx:
-                        self.causes["late_probe_nak"] = self.causes.get("late_probe_nak", 0) + 1
+                        self.needless_timeouts += 1  # the answers were on their way: the line model was early
                     # Every unanswered request not held whose latest copy went out before the probe lost it.
                     for j in range(base, nxt):
                         if results[j] is None and not held[j] and txs[j][-1] < copy:
