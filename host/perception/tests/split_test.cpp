@@ -106,5 +106,24 @@ TEST(Split, AWaistFlushWithOneSideIsNotAContact) {
   EXPECT_EQ(touching, 2);
 }
 
+TEST(Split, ACrowdCutByTheFrameKeepsItsWholeBodies) {
+  // Three rows of four discs, each touching its neighbours (2 px overlap), the left column cut by the frame's
+  // left edge (water_coins.jpg: 24 coins in one region reaching two edges): the crowd is split, the cut discs
+  // are dropped (as one body or more), the nine whole ones are objects, each touching.
+  std::vector<Poly> polys;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) polys.push_back(ellipse({10.0 + 58 * c, 140.0 + 58 * r}, 30, 30, 0));
+  Detection d = run(polys);
+  EXPECT_GE(d.isolation.border, 1);
+  ASSERT_EQ(d.objects.size(), 9u);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 1; c < 4; ++c) {
+      const DetectedObject* o = near(d, {10.0 + 58 * c, 140.0 + 58 * r}, 2);
+      ASSERT_TRUE(o) << c << "," << r;
+      EXPECT_TRUE(o->touching);
+      EXPECT_NEAR(o->geometry.area_px, M_PI * 30 * 30, 0.06 * M_PI * 30 * 30);
+    }
+}
+
 }  // namespace
 }  // namespace rbx1::vision
