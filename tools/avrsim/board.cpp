@@ -2,7 +2,6 @@
 #include "board.hpp"
 
 #include <fcntl.h>
-#include <sys/ioctl.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -40,29 +39,9 @@ void no_sleep(avr_t*, avr_cycle_count_t) {}
 
 avr_irq_t* pin_irq(avr_t* avr, PortPin p) { return avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ(p.port), p.bit); }
 
-// uart_pty prints its progress on stdout, where our first line must be the pty path: silence it meanwhile.
-class QuietStdout {
- public:
-  QuietStdout() {
-    fflush(stdout);
-    saved_ = dup(STDOUT_FILENO);
-    int null = ::open("/dev/null", O_WRONLY);
-    dup2(null, STDOUT_FILENO);
-    close(null);
-  }
-  ~QuietStdout() {
-    fflush(stdout);
-    dup2(saved_, STDOUT_FILENO);
-    close(saved_);
-  }
-
- private:
-  int saved_;
-};
-
 }  // namespace
 
-bool Board::open(const std::string& elf, const std::string& eeprom_file, bool own_bridge, std::string& error) {
+bool Board::open(const std::string& elf, const std::string& eeprom_file, std::string& error) {
   avr_global_logger_set(log_to_stderr);
   elf_firmware_t fw;
   std::memset(&fw, 0, sizeof fw);
@@ -98,31 +77,13 @@ bool Board::open(const std::string& elf, const std::string& eeprom_file, bool ow
     }
   }
 
-  if (own_bridge) {
-    // The benchmarks' bridge, in this thread (tools/simpty): simavr's uart_pty moves bytes in a thread of its own,
-    // where a loaded machine kept the firmware's answers while simulated time ran on (--hold-for-host saw nothing
-    // unread), and its writes are unchecked.
-    bridge_ = std::make_unique<simpty::PtyBridge>();
-    if (!bridge_->open(avr_, '0', error)) return false;
-    pty_name_ = bridge_->path();
-    uart0_ = bridge_->uart();
-    drive_inputs(true);
-    return true;
-  }
-  {
-    QuietStdout quiet;
-    uart_pty_init(avr_, &pty_);
-    uart_pty_connect(&pty_, '0');
-  }
-  if (!pty_.port[0].s) {
-    error = "cannot create a pty";
-    return false;
-  }
-  unlink("/tmp/simavr-uart0");  // uart_pty's convenience symlink; several simulators would fight over it
-  pty_name_ = pty_.port[0].slavename;
-  uart0_ = simpty::prepare_uart(avr_, '0');
-  slave_fd_ = simpty::open_raw_slave(pty_name_, error);
-  if (slave_fd_ < 0) return false;
+  // The pty is bridged in this thread (tools/simpty), between slices of simulated time: simavr's uart_pty moves
+  // bytes in a thread of its own, which a loaded machine held up while simulated time ran on (the firmware's
+  // answers came late by its clock, --hold-for-host saw nothing unread), and its writes are unchecked.
+  bridge_ = std::make_unique<simpty::PtyBridge>();
+  if (!bridge_->open(avr_, '0', error)) return false;
+  pty_name_ = bridge_->path();
+  uart0_ = bridge_->uart();
   drive_inputs(true);
   return true;
 }
@@ -205,25 +166,11 @@ bool Board::save_eeprom(std::string& error) {
   return true;
 }
 
-int Board::host_unread() const {
-  if (bridge_) return bridge_->host_unread();
-  int n = 0;
-  if (slave_fd_ < 0 || ioctl(slave_fd_, FIONREAD, &n) != 0) return 0;
-  return n;
-}
+int Board::host_unread() const { return bridge_->host_unread(); }
 
-bool Board::host_pending() const {
-  if (bridge_) return bridge_->host_pending();
-  int n = 0;
-  const uart_pty_port_t& p = pty_.port[0];
-  if (p.s >= 0 && ioctl(p.s, FIONREAD, &n) == 0 && n > 0) return true;
-  // Read from the bridge's thread without its lock: a stale answer only holds or runs one more slice.
-  return p.buffer_done < p.buffer_len || p.in.read != p.in.write;
-}
+bool Board::host_pending() const { return bridge_->host_pending(); }
 
-void Board::pump() {
-  if (bridge_) bridge_->pump();  // else uart_pty's thread moves the bytes
-}
+void Board::pump() { bridge_->pump(); }
 
 void Board::flush() {
   if (bridge_) bridge_->flush();

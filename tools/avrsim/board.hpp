@@ -13,17 +13,15 @@
 extern "C" {
 #include "avr_uart.h"
 #include "sim_avr.h"
-#include "uart_pty.h"
 }
 
 namespace rbx1::avrsim {
 
 class Board {
  public:
-  // Loads the ELF and bridges UART0 to a pty: through simavr's uart_pty (a thread of its own), or with
-  // own_bridge (benchmarks: --hold-for-host) through pump() in the simulation's thread (tools/simpty). Returns false
-  // with error set.
-  bool open(const std::string& elf, const std::string& eeprom_file, bool own_bridge, std::string& error);
+  // Loads the ELF and bridges UART0 to a pty through pump(), in the simulation's thread (tools/simpty). Returns
+  // false with error set.
+  bool open(const std::string& elf, const std::string& eeprom_file, std::string& error);
   avr_t* avr() const { return avr_; }
   const char* pty_path() const { return pty_name_.c_str(); }
   // Drives an input pin to its asserted or released level.
@@ -39,9 +37,9 @@ class Board {
   int host_unread() const;
   // Whether bytes the host wrote still wait for the firmware's UART (in the pty or the bridge's buffer).
   bool host_pending() const;
-  // own_bridge: moves bytes between the pty and UART0; the run loop calls it between slices (simpty::PtyBridge).
+  // Moves bytes between the pty and UART0; the run loop calls it between slices (simpty::PtyBridge).
   void pump();
-  // own_bridge: writes out what the firmware sent and the host has not got yet (at exit).
+  // Writes out what the firmware sent and the host has not got yet (at exit).
   void flush();
   // Writes the EEPROM to the --eeprom file (atomic rename). No-op without one.
   bool save_eeprom(std::string& error);
@@ -56,9 +54,7 @@ class Board {
 
   avr_t* avr_ = nullptr;
   ::avr_uart_t* uart0_ = nullptr;
-  uart_pty_t pty_{};                           // without own_bridge
-  int slave_fd_ = -1;                          // held open so the pty never reports EIO to uart_pty's reader thread
-  std::unique_ptr<simpty::PtyBridge> bridge_;  // own_bridge
+  std::unique_ptr<simpty::PtyBridge> bridge_;
   std::string pty_name_;
   std::string eeprom_file_;
   bool estop_ = false;

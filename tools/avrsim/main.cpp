@@ -137,7 +137,7 @@ struct Estop {
   }
 };
 
-// Exit without uart_pty_stop(): it joins a reader thread that never returns.
+// Exit at once, with what the firmware sent written out and the EEPROM saved.
 [[noreturn]] void finish(Board& board, const Probes& probes, Trace* trace, const std::string& json_path, int code) {
   std::string err;
   if (trace) trace->flush();
@@ -177,8 +177,7 @@ int main(int argc, char** argv) {
   app.add_flag("--hold-for-host", hold_for_host,
                "benchmarks: simulated time stands still while the host is late (what the firmware sent waits unread "
                "and nothing the host wrote waits for the firmware) or says it is busy (--clock-file byte 8 = 1), so "
-               "figures in simulated cycles count the link, not the host's scheduling; the pty is then bridged in the "
-               "simulation's thread (simavr's uart_pty thread, late under load, let simulated time run meanwhile)");
+               "figures in simulated cycles count the link, not the host's scheduling");
   app.add_option("--clock-file", clock_file,
                  "a 16-byte file, mapped: the simulated time (cycles, u64 little-endian) at 0, kept current, so a "
                  "host can time out on the board's clock (the harness's --sim-clock, benchmarks); at 8 a byte the "
@@ -192,7 +191,7 @@ int main(int argc, char** argv) {
   }
   Board board;
   std::string error;
-  if (!board.open(elf, eeprom, hold_for_host, error)) {
+  if (!board.open(elf, eeprom, error)) {
     std::fprintf(stderr, "rbx1-avrsim: %s\n", error.c_str());
     return 2;
   }
