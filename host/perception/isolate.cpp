@@ -443,6 +443,9 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
   const int n = int(regions.size());
   struct Cand { int label; cv::Rect box; bool edge; };
   std::vector<Cand> keep;
+  auto at_edge = [&](cv::Rect box) {
+    return box.x == 0 || box.y == 0 || box.br().x == d.cols || box.br().y == d.rows;
+  };
   for (int i = 1; i < n; ++i) {
     const Component& r = regions[size_t(i)];
     if (!r.strong) continue;  // never reaches the threshold: not an object
@@ -456,7 +459,7 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
     // A region cut by the frame's edge is no object; but a crowd of touching objects (water_coins.jpg's 24
     // coins, one region reaching the left and bottom edges) is split first, and only its bodies cut by the
     // edge go (below).
-    const bool edge = box.x == 0 || box.y == 0 || box.br().x == d.cols || box.br().y == d.rows;
+    const bool edge = at_edge(box);
     if (edge && !opt.split_touching) {
       ++out.border;
       continue;
@@ -464,9 +467,6 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
     keep.push_back({i, box, edge});
   }
   const cv::Rect frame(0, 0, d.cols, d.rows);
-  auto at_edge = [&](cv::Rect box) {
-    return box.x == 0 || box.y == 0 || box.br().x == d.cols || box.br().y == d.rows;
-  };
   auto grow = [&](cv::Rect box) {
     return cv::Rect(box.x - opt.margin_px, box.y - opt.margin_px, box.width + 2 * opt.margin_px,
                     box.height + 2 * opt.margin_px) & frame;

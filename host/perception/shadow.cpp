@@ -2,7 +2,6 @@
 #include "shadow.hpp"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <cstdint>
 
@@ -61,22 +60,12 @@ int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreySh
   // region's box grown by 3 px.
   const cv::Rect frame(0, 0, gray.cols, gray.rows);
   int total = 0;
-  // The ratio gray / background on 0-255, min(255, 255 g / max(b, 1)), the division as a multiplication by
-  // ceil(2^32 / max(b, 1)): exact for numerators under 2^16 (the error, under n (b - 1) / 2^32, stays under 1 / b).
-  // Tabled for every (background, grey) pair (64 KiB), so the per-pixel loop below is a lookup.
-  static const auto reciprocal = [] {
-    std::array<uint64_t, 256> t{};
-    for (uint64_t b = 0; b < 256; ++b) {
-      const uint64_t d = std::max<uint64_t>(b, 1);
-      t[b] = ((uint64_t(1) << 32) + d - 1) / d;
-    }
-    return t;
-  }();
-  auto ratio = [&](int g, int b) { return int(std::min<uint64_t>(255, (uint64_t(255 * g) * reciprocal[b]) >> 32)); };
-  static const std::vector<uchar> ratio_table = [&] {
+  // The ratio gray / background on 0-255, min(255, 255 g / max(b, 1)), tabled for every (background, grey) pair
+  // (64 KiB), so the per-pixel loops below are lookups.
+  static const std::vector<uchar> ratio_table = [] {
     std::vector<uchar> t(256 * 256);
     for (int b = 0; b < 256; ++b)
-      for (int g = 0; g < 256; ++g) t[size_t(b * 256 + g)] = uchar(ratio(g, b));
+      for (int g = 0; g < 256; ++g) t[size_t(b * 256 + g)] = uchar(std::min(255, 255 * g / std::max(b, 1)));
     return t;
   }();
   for (size_t k = 0; k < regions.size(); ++k) {
@@ -232,7 +221,7 @@ int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreySh
       const uchar* b = background.ptr<uchar>(r.y + y) + r.x;
       float* rr = shade_ratio.ptr<float>(y);
       for (int x = 0; x < r.width; ++x)
-        if (m[x]) rr[x] = float(ratio(g[x], b[x])) / 255.f;  // (the shade of earlier regions too)
+        if (m[x]) rr[x] = float(ratio_table[size_t(b[x]) * 256 + g[x]]) / 255.f;  // (earlier regions' shade too)
     }
     sh.convertTo(weight, CV_32F, 1.0 / 255);
     cv::boxFilter(shade_ratio, spread, CV_32F, cv::Size(5, 5), cv::Point(-1, -1), false);
