@@ -1,7 +1,6 @@
 // main.cpp - rbx1-avrsim: runs the real firmware ELF under simavr behind a pty, paced to real time, driven by a
 // control FIFO, and writes step counts, step-ISR cycles and e-stop latency as JSON on exit.
 #include <fcntl.h>
-#include <sys/mman.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -24,6 +23,7 @@ extern "C" {
 }
 
 #include "board.hpp"
+#include "clock_file.hpp"
 #include "probes.hpp"
 #include "trace.hpp"
 
@@ -236,16 +236,13 @@ int main(int argc, char** argv) {
   volatile uint64_t* sim_clock = nullptr;
   volatile uint8_t* host_busy = nullptr;
   if (!clock_file.empty()) {
-    int fd = ::open(clock_file.c_str(), O_RDWR | O_CREAT | O_TRUNC, 0644);
-    void* m = fd >= 0 && ftruncate(fd, 16) == 0 ? mmap(nullptr, 16, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0)
-                                                : MAP_FAILED;
-    if (fd >= 0) ::close(fd);
-    if (m == MAP_FAILED) {
-      std::fprintf(stderr, "rbx1-avrsim: %s: %s\n", clock_file.c_str(), std::strerror(errno));
+    volatile uint8_t* m = rbx1::simpty::map_clock_file(clock_file, error);
+    if (!m) {
+      std::fprintf(stderr, "rbx1-avrsim: %s\n", error.c_str());
       return 2;
     }
-    sim_clock = static_cast<volatile uint64_t*>(m);
-    host_busy = static_cast<volatile uint8_t*>(m) + 8;
+    sim_clock = reinterpret_cast<volatile uint64_t*>(m);
+    host_busy = m + 8;
     *sim_clock = board.avr()->cycle;
   }
   std::printf("%s\n", board.pty_path());

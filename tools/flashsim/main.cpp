@@ -1,7 +1,5 @@
 // main.cpp - rbx1-avrboard: an Arduino Mega 2560 as it leaves the factory, under simavr: Debian's stk500v2
 // bootloader in the boot section, flash and EEPROM kept in files, UART0 on a pty with the auto-reset modelled.
-#include <fcntl.h>
-#include <sys/mman.h>
 #include <sys/resource.h>
 #include <termios.h>
 #include <unistd.h>
@@ -11,7 +9,6 @@
 #include <csignal>
 #include <cstdarg>
 #include <cstdio>
-#include <cstring>
 #include <ctime>
 #include <fstream>
 #include <iterator>
@@ -29,6 +26,7 @@ extern "C" {
 
 #include "autoreset.hpp"
 #include "flash_image.hpp"
+#include "clock_file.hpp"
 #include "pty_bridge.hpp"
 
 namespace {
@@ -150,15 +148,13 @@ int main(int argc, char** argv) {
   volatile uint64_t* sim_clock = nullptr;
   uint64_t sim_cycles = 0;
   if (!clock_file.empty()) {
-    const int fd = ::open(clock_file.c_str(), O_RDWR | O_CREAT | O_TRUNC, 0644);
-    void* m = fd >= 0 && ftruncate(fd, 16) == 0 ? mmap(nullptr, 16, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0)
-                                                : MAP_FAILED;
-    if (m == MAP_FAILED) {
-      std::fprintf(stderr, "rbx1-avrboard: %s: %s\n", clock_file.c_str(), std::strerror(errno));
+    std::string error;
+    volatile uint8_t* m = rbx1::simpty::map_clock_file(clock_file, error);
+    if (!m) {
+      std::fprintf(stderr, "rbx1-avrboard: %s\n", error.c_str());
       return 2;
     }
-    ::close(fd);
-    sim_clock = static_cast<volatile uint64_t*>(m);
+    sim_clock = reinterpret_cast<volatile uint64_t*>(m);
     *sim_clock = 0;
   }
 
