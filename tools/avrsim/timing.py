@@ -8,10 +8,8 @@ Used by tools/avrsim/test/test_timing.py (thresholds) and tools/bench/firmware (
 Usage: timing.py [--trials N] [--json OUT] [--keep-trace FILE]"""
 import argparse
 import json
-import mmap
 import os
 import random
-import struct
 import subprocess
 import sys
 import tempfile
@@ -19,13 +17,14 @@ import time
 
 ROOT = os.path.normpath(os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "protocol", "python"))
+sys.path.insert(0, os.path.join(ROOT, "tools", "harness"))
 from rbx1proto.link import Link  # noqa: E402
 from rbx1proto.messages import PROTO_VERSION, Key, MsgType, State, Status  # noqa: E402
+from rbx1_harness.sim_clock import HZ, SimClock  # noqa: E402
 
 AVRSIM = os.environ.get("AVRSIM", os.path.join(ROOT, "build", "bin", "rbx1-avrsim"))
 ELF = os.environ.get("RBX1_FIRMWARE_ELF", os.path.join(ROOT, "build", "firmware", "rbx1.elf"))
 STEP_VECTOR = 17          # TIMER1_COMPA on the ATmega2560
-HZ = 16_000_000
 CAP = 20000               # steps/s: MAX_SPEED's configurable maximum
 CAP_INTERVAL = HZ / CAP   # 800 cycles
 
@@ -212,10 +211,9 @@ class Board:
         self.clock = None
         if hold_for_host:  # PROTOCOL.md's 100 ms on the board's clock: a frame the bridge lost costs 2.5 moves of stream.py
             self.link.timeout = 0.1
-            with open(clock, "r+b") as f:  # written before the pty path
-                self.clock = mmap.mmap(f.fileno(), 16)
-            self.link.clock = lambda: struct.unpack_from("<Q", self.clock, 0)[0] / HZ
-            self.link.ser = HostTurn(self.link.ser, memoryview(self.clock)[8:9])
+            self.clock = SimClock(clock)  # written before the pty path
+            self.link.clock = self.clock.seconds
+            self.link.ser = HostTurn(self.link.ser, self.clock.busy)
         self.link.hello()
         self.ctl = os.fdopen(os.open(self.fifo, os.O_WRONLY), "w")
 
@@ -260,7 +258,6 @@ class Board:
             self.proc.wait()
         self.link.close()
         if self.clock:
-            self.link.ser._flag.release()
             self.clock.close()
 
 

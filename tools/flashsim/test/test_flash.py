@@ -7,7 +7,6 @@ import json
 import os
 import re
 import shutil
-import struct
 import subprocess
 import sys
 import time
@@ -16,10 +15,12 @@ import pytest
 
 SRC = os.environ.get("RBX1_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 sys.path.insert(0, os.path.join(SRC, "protocol", "python"))
+sys.path.insert(0, os.path.join(SRC, "tools", "harness"))
 sys.path.insert(0, os.path.dirname(__file__))
 from flip_proxy import FlipProxy  # noqa: E402
 from rbx1proto.link import Link  # noqa: E402
 from rbx1proto.messages import MsgType, Status  # noqa: E402
+from rbx1_harness.sim_clock import SimClock  # noqa: E402
 
 AVRBOARD = os.environ.get("AVRBOARD", os.path.join(SRC, "build", "bin", "rbx1-avrboard"))
 BIN = os.path.dirname(AVRBOARD)
@@ -62,14 +63,14 @@ class BoardRun:
                                      stdout=subprocess.PIPE, stderr=self.err, text=True)
         self.port = self.proc.stdout.readline().strip()
         assert self.port.startswith("/dev/pts/"), f"no pty path from rbx1-avrboard (got {self.port!r})"
+        self.sim_clock = SimClock(self.clock)  # written before the pty path
 
     def events(self):
         return self.log.read_text()
 
     def now(self):
         """Seconds on the board's clock (its --clock-file): a loaded machine holds the simulation behind real time."""
-        with open(self.clock, "rb") as f:
-            return struct.unpack("<Q", f.read(8))[0] / 16e6
+        return self.sim_clock.seconds()
 
     def upload_seconds(self, since):
         """Simulated seconds from the last reset to the application's start (the bootloader leaves 0.1 s after
@@ -105,6 +106,7 @@ class BoardRun:
     def stop(self):
         self.proc.terminate()
         assert self.proc.wait(timeout=10) == 0, self.events()
+        self.sim_clock.close()
         self.err.close()
 
 

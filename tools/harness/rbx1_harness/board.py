@@ -1,8 +1,6 @@
 """board.py - the device under test as the checks see it: requests through rbx1proto's Link, raw frames on the
 wire, STATUS polling, the simulator's control FIFO, and a known starting state before every check."""
-import mmap
 import os
-import struct
 import time
 
 from rbx1proto import frame, messages
@@ -10,10 +8,10 @@ from rbx1proto.link import Link, LinkError
 from rbx1proto.messages import Fault, MsgType, State, Status
 
 from .runner import expect
+from .sim_clock import SimClock
 
 POLL_S = 0.02
 GLOBAL = messages.GLOBAL_JOINT
-CLOCK_HZ = 16_000_000  # a simulator's --clock-file counts cycles of its atmega2560 at 16 MHz (rbx1-avrsim, rbx1-avrboard)
 
 
 class Board:
@@ -23,10 +21,7 @@ class Board:
         # The device's own clock when a simulator shares it (--clock-file: its simulated cycles): every timeout,
         # silence and duration of the checks is then counted on it, so a simulator that a loaded machine holds
         # behind real time is neither timed out early nor left silent for less of its time than a check meant.
-        self.sim_clock = None
-        if clock_file:
-            with open(clock_file, "r+b") as f:
-                self.sim_clock = mmap.mmap(f.fileno(), 16)
+        self.sim_clock = SimClock(clock_file) if clock_file else None
         # More patient than a host must be (100 ms, 5 retransmissions): the checks test the device, and a busy test
         # machine can deschedule this process past 100 ms. The answer time itself is checked in response_time.
         self.link = Link(port, baudrate=baud, timeout=timeout, retries=retries)
@@ -70,7 +65,7 @@ class Board:
         """Seconds on the device's clock: the simulator's (--clock-file), else the wall clock (a real board's and
         rbx1-simfw's clocks keep it)."""
         if self.sim_clock:
-            return struct.unpack_from("<Q", self.sim_clock, 0)[0] / CLOCK_HZ
+            return self.sim_clock.seconds()
         return time.monotonic()
 
     def sleep(self, seconds):
