@@ -507,6 +507,16 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
             cv::drawContours(whole, outlines, int(i), cv::Scalar(0), cv::FILLED);
       }
       int bodies = opt.split_touching ? split_touching(whole, so, parts) : 1;
+      if (bodies > 1) {
+        // Bodies of different contrast are cut where the contrast changes (a dark sweet before a red one).
+        cv::Mat contrast(layer.roi.size(), CV_8U);
+        const cv::Mat g = con.gray(layer.roi), bg = con.background(layer.roi);
+        for (int y = 0; y < contrast.rows; ++y)
+          for (int x = 0; x < contrast.cols; ++x)
+            contrast.at<uchar>(y, x) =
+                uchar(std::clamp(sg * (int(g.at<uchar>(y, x)) - int(bg.at<uchar>(y, x))) - table, 0, 255));
+        cut_between_levels(contrast, con.noise_sigma, bodies, parts);
+      }
       // Cut by the edge, a crowd (three bodies or more) is kept apart; one body and its neighbour may be an
       // object and its own shadow running off the frame (the shadow-strong scenes: kept, both came out
       // misshapen), dropped whole as before.

@@ -1,4 +1,5 @@
-// split.cpp - touching objects cut at their necks: distance-transform maxima ranked by persistence, watershed.
+// split.cpp - touching objects cut at their necks (distance-transform maxima ranked by persistence, watershed), and
+// bodies of clearly different contrast re-cut where their contrast changes.
 #include "split.hpp"
 
 #include <algorithm>
@@ -6,6 +7,8 @@
 #include <queue>
 
 #include <opencv2/imgproc.hpp>
+
+#include "pixels.hpp"
 
 namespace rbx1::vision {
 namespace {
@@ -174,6 +177,98 @@ int split_touching(const cv::Mat& mask, const SplitOptions& opt, cv::Mat& parts)
     for (int x = 0; x < w; ++x) row[x] = renumber[size_t(std::max(0, row[x]))];
   }
   return bodies;
+}
+
+void cut_between_levels(const cv::Mat& contrast, double noise_sigma, int bodies, cv::Mat& parts) {
+  const int w = parts.cols, h = parts.rows, n = bodies;
+  // Each body's level: the median contrast over its pixels.
+  std::vector<std::vector<int>> hist(size_t(n + 1), std::vector<int>(256, 0));
+  std::vector<int> count(size_t(n + 1), 0);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const int l = parts.at<int>(y, x);
+      if (l > 0 && l <= n) hist[size_t(l)][contrast.at<uchar>(y, x)]++, count[size_t(l)]++;
+    }
+  std::vector<int> level(size_t(n + 1), 0);
+  for (int l = 1; l <= n; ++l)
+    for (int acc = 0; level[size_t(l)] < 255 && (acc += hist[size_t(l)][size_t(level[size_t(l)])]) * 2 < count[size_t(l)];)
+      ++level[size_t(l)];
+  // Neighbours (8-connected) of clearly different levels.
+  std::vector<std::vector<char>> apart(size_t(n + 1), std::vector<char>(size_t(n + 1), 0));
+  bool any = false;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const int a = parts.at<int>(y, x);
+      if (a <= 0) continue;
+      for (int dy = 0; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int qx = x + dx, qy = y + dy;
+          if ((dy == 0 && dx <= 0) || qx < 0 || qx >= w || qy >= h) continue;
+          const int b = parts.at<int>(qy, qx);
+          if (b <= 0 || b == a) continue;
+          const int la = level[size_t(a)], lb = level[size_t(b)];
+          if (std::abs(la - lb) >= std::max(4 * noise_sigma, 0.2 * std::max(la, lb)))
+            apart[size_t(a)][size_t(b)] = apart[size_t(b)][size_t(a)] = any = true;
+        }
+    }
+  if (!any) return;
+  // The band within 2 px of the outline holds the bodies' edges over the table, at every level between the
+  // table's and their own (a dark body's rim passes through a lighter neighbour's level): no evidence for one
+  // body or the other. It takes no part in the seeds and joins the nearest body once the rest is cut.
+  cv::Mat near_out;
+  dilate_square(parts == 0, near_out, 2);
+  // The seeds: per body, its pixels off the band on its own side of every half-way level, largest connected part.
+  cv::Mat own(h, w, CV_8U, cv::Scalar(0)), seeds(h, w, CV_32S, cv::Scalar(0));
+  for (int l = 1; l <= n; ++l) {
+    own.setTo(0);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        if (parts.at<int>(y, x) != l) continue;
+        const int c = contrast.at<uchar>(y, x);
+        bool mine = true;
+        for (int o = 1; o <= n && mine; ++o)
+          mine = !apart[size_t(l)][size_t(o)] || std::abs(c - level[size_t(l)]) < std::abs(c - level[size_t(o)]);
+        own.at<uchar>(y, x) = mine && !near_out.at<uchar>(y, x) ? 255 : 0;
+      }
+    cv::Mat comp, stats, centres;
+    const int nc = cv::connectedComponentsWithStats(own, comp, stats, centres, 8, CV_32S);
+    int best = 0;
+    for (int i = 1; i < nc; ++i)
+      if (!best || stats.at<int>(i, cv::CC_STAT_AREA) > stats.at<int>(best, cv::CC_STAT_AREA)) best = i;
+    if (best) seeds.setTo(l, comp == best);
+  }
+  // Seeded region growing over the rest of the bodies' pixels: the pixel closest to the level of the body
+  // beside it joins that body first; then the band, nearest first (its key: 1000 + steps from the rest).
+  using Item = std::pair<int, int>;  // (-key, pixel * (n + 1) + label)
+  std::priority_queue<Item> queue;
+  int* sv = seeds.ptr<int>();
+  const int* pv = parts.ptr<int>();
+  const uchar* cv_ = contrast.ptr<uchar>();
+  const uchar* bv = near_out.ptr<uchar>();
+  std::vector<int> depth(size_t(w * h), 0);
+  auto push_around = [&](int p) {
+    const int px = p % w, py = p / w, lab = sv[p];
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int qx = px + dx, qy = py + dy;
+        if (qx < 0 || qy < 0 || qx >= w || qy >= h) continue;
+        const int q = qy * w + qx;
+        if (pv[q] <= 0 || sv[q]) continue;
+        if (bv[q]) queue.push({-(1000 + depth[size_t(p)] + 1), q * (n + 1) + lab});
+        else queue.push({-std::abs(int(cv_[q]) - level[size_t(lab)]), q * (n + 1) + lab});
+      }
+  };
+  for (int p = 0; p < w * h; ++p)
+    if (sv[p]) push_around(p);
+  while (!queue.empty()) {
+    const int key = queue.top().first, q = queue.top().second / (n + 1), lab = queue.top().second % (n + 1);
+    queue.pop();
+    if (sv[q]) continue;
+    sv[q] = lab;
+    depth[size_t(q)] = key <= -1000 ? -key - 1000 : 0;
+    push_around(q);
+  }
+  seeds.copyTo(parts);
 }
 
 }  // namespace rbx1::vision

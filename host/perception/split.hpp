@@ -22,4 +22,13 @@ struct SplitOptions {
 // has both ends in concavities of the outline (else its two bodies are one).
 int split_touching(const cv::Mat& mask, const SplitOptions& opt, cv::Mat& parts);
 
+// Touching objects of clearly different contrast (levels, the medians over their bodies, at least 4 noise sigma
+// and a fifth of the stronger apart: a dark sweet in front of a red one) meet where the contrast crosses the
+// level half-way between them, not where the outline is narrowest. contrast: CV_8U, parts' size; `parts`
+// (1..n from split_touching) is re-cut in place: each body keeps the largest connected part of its pixels on its
+// own side of every such neighbour's half-way level (leaving out the band within 2 px of the outline: edges over
+// the table, at every level), and the rest joins its neighbours by seeded region growing (closest to a
+// neighbour's level first, the band last and nearest first). Bodies of like levels keep their cut.
+void cut_between_levels(const cv::Mat& contrast, double noise_sigma, int bodies, cv::Mat& parts);
+
 }  // namespace rbx1::vision

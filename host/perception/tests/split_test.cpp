@@ -1,6 +1,7 @@
 // split_test.cpp - touching objects are cut apart at their necks, each with its own grip clear of the other;
 // single objects with no neck (bars, L shapes, stars, discs) stay whole.
 #include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
 
 #include <cmath>
 
@@ -123,6 +124,48 @@ TEST(Split, ACrowdCutByTheFrameKeepsItsWholeBodies) {
       EXPECT_TRUE(o->touching);
       EXPECT_NEAR(o->geometry.area_px, M_PI * 30 * 30, 0.06 * M_PI * 30 * 30);
     }
+}
+
+TEST(Split, ADarkDiscInFrontOfALighterOneKeepsItsWholeOutline) {
+  // smarties.png's pair: a dark sweet (contrast 170) lying in front of a lighter one (contrast 80), their
+  // centres 1.8 radii apart. The neck's watershed is a straight cut half-way between the centres, 4.5 px
+  // inside the dark disc's arc; the cut between bodies of such different levels follows the contrast instead,
+  // so the dark disc keeps its whole outline and the lighter one only what shows of it.
+  const double r = 45;
+  const cv::Point2d ca(250, 240), cb(331, 240);
+  Scene cover_scene;
+  cover_scene.background = 0, cover_scene.object = 255;
+  cv::Mat a8, b8, a, b;
+  cv::extractChannel(render(cover_scene, {ellipse(ca, r, r, 0)}), a8, 0);
+  cv::extractChannel(render(cover_scene, {ellipse(cb, r, r, 0)}), b8, 0);
+  a8.convertTo(a, CV_32F, 1.0 / 255);
+  b8.convertTo(b, CV_32F, 1.0 / 255);
+  cv::Mat img = 200 + (120 - 200) * a;  // the lighter disc on the table
+  img += (30 - img).mul(b);              // the dark one in front of it
+  cv::GaussianBlur(img, img, cv::Size(), 0.7);
+  cv::Mat noise(img.size(), CV_32F);
+  cv::RNG rng(1);
+  rng.fill(noise, cv::RNG::NORMAL, 0, 2);
+  img += noise;
+  cv::Mat gray;
+  img.convertTo(gray, CV_8U);
+  cv::Mat shown = a.mul(1 - b);  // what shows of the lighter disc
+  const cv::Moments m = cv::moments(shown);
+  const cv::Point2d ca_shown(m.m10 / m.m00, m.m01 / m.m00);
+  Detection d;
+  std::string e;
+  ASSERT_TRUE(detect(gray, {}, DetectorOptions{}, nullptr, d, e)) << e;
+  ASSERT_EQ(d.objects.size(), 2u);
+  const DetectedObject* dark = near(d, cb, 3);
+  const DetectedObject* light = near(d, ca_shown, 3);
+  ASSERT_TRUE(dark);
+  ASSERT_TRUE(light);
+  EXPECT_TRUE(dark->touching);
+  EXPECT_NEAR(dark->geometry.area_px, M_PI * r * r, 0.01 * M_PI * r * r);
+  EXPECT_LT(cv::norm(dark->geometry.centroid - cb), 0.3);
+  // (Its edge pixels along the cut count whole: +1.5 %.)
+  EXPECT_NEAR(light->geometry.area_px, m.m00, 0.02 * m.m00);
+  EXPECT_LT(cv::norm(light->geometry.centroid - ca_shown), 0.5);
 }
 
 }  // namespace
