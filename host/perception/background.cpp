@@ -148,7 +148,8 @@ LightFit compensate_light(const cv::Mat& gray, const cv::Mat& bg, cv::Mat* corre
   if (!(fit.gain >= 0.5 && fit.gain <= 2.0 && std::abs(fit.offset) <= 64 && fit.unchanged >= 0.2)) fit = LightFit{};
   if (corrected) {
     cv::Mat out;  // never in place: *corrected may share the caller's background image
-    bg.convertTo(out, CV_8U, fit.gain, fit.offset);
+    if (fit.gain == 1 && fit.offset == 0) out = bg;  // no change: shared, not copied (callers never write it)
+    else bg.convertTo(out, CV_8U, fit.gain, fit.offset);
     *corrected = out;
   }
   return fit;

@@ -30,8 +30,9 @@ struct LightFit {
   double unchanged = 1;  // fraction of the grid used in the final fit
 };
 // Fits the light change on 8-bit gray images of the same size; `corrected` (optional) receives the background
-// brought to the scene's light (8-bit, saturated). A uniform table fits the gain alone; an implausible change
-// (gain outside 0.5-2, offset beyond 64 levels, under 20 % of the table unchanged) returns gain 1, offset 0.
+// brought to the scene's light (8-bit, saturated; with no change, the background itself, shared: read it only).
+// A uniform table fits the gain alone; an implausible change (gain outside 0.5-2, offset beyond 64 levels, under
+// 20 % of the table unchanged) returns gain 1, offset 0.
 LightFit compensate_light(const cv::Mat& gray, const cv::Mat& background_gray, cv::Mat* corrected);
 
 // The k-th smallest (from 0) of non-negative floats (the fit's residuals), as std::nth_element finds it.

@@ -79,108 +79,29 @@ void unite(std::vector<Run>& runs, int a, int b) {
 
 }  // namespace
 
-// The byte loops take 32 pixels at a time where the CPU has AVX2 (a clone chosen when the program loads;
-// integer arithmetic only, so the results are the same either way).
-RBX1_AVX2_CLONES
-long long label_components(const cv::Mat& gray, const cv::Mat& background, int s, int low, int high, int first_label,
-                           cv::Mat& labels, std::vector<Component>& comps, bool clear) {
-  CV_Assert(gray.type() == CV_8U && background.type() == CV_8U && gray.size() == background.size());
-  const int W = gray.cols, H = gray.rows;
-  comps.clear();
-  if (clear) labels.create(gray.size(), CV_32S);
-  if (W == 0 || H == 0) return 0;
-  // Rows: the contrast (3 kept for the erosion), the eroded rows (3 kept for the dilation), each padded by one
-  // pixel on both sides with the value that leaves the min (255) or the max (0) unchanged: OpenCV's borders for
-  // erode and dilate. Rows outside the frame are those constants too.
-  const size_t P = size_t(W) + 2;
-  std::vector<uchar> buf(P * 8);
-  uchar* c[3] = {buf.data(), buf.data() + P, buf.data() + 2 * P};
-  uchar* e[3] = {buf.data() + 3 * P, buf.data() + 4 * P, buf.data() + 5 * P};
-  uchar* tmp = buf.data() + 6 * P;
-  uchar* full = buf.data() + 7 * P;  // 255 everywhere
-  // The row's pixels above the low and the high level as bytes (0 or 255), zero-padded to whole 64-pixel
-  // words, and as bits.
-  const int nw = (W + 63) / 64;
-  std::vector<uchar> zero(P, 0), in(size_t(nw) * 64, 0), in_high(size_t(nw) * 64, 0);
-  std::vector<uint64_t> lo_bits(static_cast<size_t>(nw)), hi_bits(static_cast<size_t>(nw));
-  std::memset(full, 255, P);
-  for (uchar* r : c) r[0] = r[W + 1] = 255;
-  for (uchar* r : e) r[0] = r[W + 1] = 0;
+namespace {
 
+// One labelling's state during the sweep: its levels, its row's pixels above them (bytes, then bits) and its runs.
+struct Pass {
+  uchar lo = 0, hi = 0;
+  std::vector<uchar> in, in_high;
+  std::vector<uint64_t> lo_bits, hi_bits;
   std::vector<Run> runs;
-  std::vector<int> row_start(size_t(H) + 1, 0);
+  std::vector<int> row_start;
   long long above_high = 0;
-  const uchar lo = uchar(std::clamp(low, 0, 255)), hi = uchar(std::clamp(high, 0, 255));
+};
 
-  for (int t = 0; t <= H + 1; ++t) {
-    if (t < H) {  // contrast row t
-      const uchar* g = gray.ptr<uchar>(t);
-      const uchar* b = background.ptr<uchar>(t);
-      uchar* o = c[t % 3] + 1;
-      if (s > 0) {
-        for (int x = 0; x < W; ++x) o[x] = uchar(std::max(0, int(g[x]) - int(b[x])));
-      } else {
-        for (int x = 0; x < W; ++x) o[x] = uchar(std::max(0, int(b[x]) - int(g[x])));
-      }
-    }
-    const int ye = t - 1;  // eroded row ye: min over rows ye-1..ye+1, then over x-1..x+1
-    if (ye >= 0 && ye < H) {
-      const uchar* a = ye - 1 >= 0 ? c[(ye - 1) % 3] : full;
-      const uchar* m = c[ye % 3];
-      const uchar* z = ye + 1 < H ? c[(ye + 1) % 3] : full;
-      for (size_t x = 0; x < P; ++x) tmp[x] = std::min(std::min(a[x], m[x]), z[x]);
-      uchar* o = e[ye % 3] + 1;
-      for (int x = 0; x < W; ++x) o[x] = std::min(std::min(tmp[x], tmp[x + 1]), tmp[x + 2]);
-    }
-    const int y = t - 2;  // opened row y: max over eroded rows y-1..y+1, then over x-1..x+1
-    if (y < 0 || y >= H) continue;
-    {
-      const uchar* a = y - 1 >= 0 ? e[(y - 1) % 3] : zero.data();
-      const uchar* m = e[y % 3];
-      const uchar* z = y + 1 < H ? e[(y + 1) % 3] : zero.data();
-      for (size_t x = 0; x < P; ++x) tmp[x] = std::max(std::max(a[x], m[x]), z[x]);
-      uchar* il = in.data();
-      uchar* ih = in_high.data();
-      for (int x = 0; x < W; ++x) {
-        const uchar o = std::max(std::max(tmp[x], tmp[x + 1]), tmp[x + 2]);
-        il[x] = uchar(-int(o > lo));
-        ih[x] = uchar(-int(o > lo && o > hi));
-      }
-    }
-    // Runs above the low level, found 64 pixels at a time in the row's bits.
-    row_start[size_t(y)] = int(runs.size());
-    pack_bits(in.data(), nw, nullptr, lo_bits.data());
-    pack_bits(in_high.data(), nw, lo_bits.data(), hi_bits.data());
-    for (int i = 0; i < nw; ++i)
-      if (hi_bits[size_t(i)]) above_high += __builtin_popcountll(hi_bits[size_t(i)]);
-    for (int x = next_bit(lo_bits.data(), nw, 0, 0); x < W;) {
-      const int end = next_bit(lo_bits.data(), nw, x, ~0ULL);  // the padding is clear: end <= W
-      runs.push_back(Run{y, x, end - 1, int(runs.size()), any_bit(hi_bits.data(), x, end - 1)});
-      x = next_bit(lo_bits.data(), nw, end, 0);
-    }
-    // 8-connected to the previous row's runs: overlapping once widened by one pixel.
-    if (y > 0) {
-      int i = row_start[size_t(y - 1)], j = row_start[size_t(y)];
-      const int i_end = row_start[size_t(y)], j_end = int(runs.size());
-      while (i < i_end && j < j_end) {
-        const Run& p = runs[size_t(i)];
-        const Run& q = runs[size_t(j)];
-        if (p.x1 + 1 < q.x0) ++i;
-        else if (q.x1 + 1 < p.x0) ++j;
-        else {
-          unite(runs, i, j);
-          if (p.x1 < q.x1) ++i;
-          else ++j;
-        }
-      }
-    }
+// The components of one pass, numbered as OpenCV numbers them, written into its labels.
+void finish(Pass& ps, int W, int H, Labelling& out) {
+  std::vector<Run>& runs = ps.runs;
+  const std::vector<int>& row_start = ps.row_start;
+  cv::Mat& labels = *out.labels;
+  std::vector<Component>& comps = *out.comps;
+  out.above_high = ps.above_high;
+  if (ps.above_high == 0) {  // nothing of this polarity reaches the high level: no components at all
+    if (out.clear) labels.setTo(0);
+    return;
   }
-  row_start[size_t(H)] = int(runs.size());
-  if (above_high == 0) {  // nothing of this polarity reaches the high level: no components at all
-    if (clear) labels.setTo(0);
-    return 0;
-  }
-
   // One component per root; OpenCV's numbering: by the first 2x2 block (row pair, column pair) it occupies.
   const long long bw = (W + 1) / 2;
   std::vector<int> comp_of(runs.size(), -1);
@@ -208,6 +129,8 @@ long long label_components(const cv::Mat& gray, const cv::Mat& background, int s
   comps.assign(roots.size(), Component{});
   // Row by row (a row's runs are consecutive, left to right); with `clear` the gaps between runs are zeroed in
   // the same sweep, so the frame's labels are written once instead of zero-filled first.
+  const bool clear = out.clear;
+  const int first_label = out.first_label;
   for (int y = 0; y < H; ++y) {
     int* lr = labels.ptr<int>(y);
     int x = 0;
@@ -228,7 +151,136 @@ long long label_components(const cv::Mat& gray, const cv::Mat& background, int s
   }
   for (size_t k = 0; k < comps.size(); ++k)
     comps[k].box = cv::Rect(boxes[k].x0, boxes[k].y0, boxes[k].x1 - boxes[k].x0 + 1, boxes[k].y1 - boxes[k].y0 + 1);
-  return above_high;
+}
+
+}  // namespace
+
+// The byte loops take 32 pixels at a time where the CPU has AVX2 (a clone chosen when the program loads;
+// integer arithmetic only, so the results are the same either way).
+RBX1_AVX2_CLONES
+void label_components(const cv::Mat& gray, const cv::Mat& background, int s, Labelling* outs, int n_outs) {
+  CV_Assert(gray.type() == CV_8U && background.type() == CV_8U && gray.size() == background.size());
+  CV_Assert(n_outs >= 1 && n_outs <= 2);
+  const int W = gray.cols, H = gray.rows;
+  for (int k = 0; k < n_outs; ++k) {
+    outs[k].comps->clear();
+    outs[k].above_high = 0;
+    if (outs[k].clear) outs[k].labels->create(gray.size(), CV_32S);
+  }
+  if (W == 0 || H == 0) return;
+  // Rows: the contrast (3 kept for the erosion), the eroded rows (3 kept for the dilation), each padded by one
+  // pixel on both sides with the value that leaves the min (255) or the max (0) unchanged: OpenCV's borders for
+  // erode and dilate. Rows outside the frame are those constants too.
+  const size_t P = size_t(W) + 2;
+  std::vector<uchar> buf(P * 8);
+  uchar* c[3] = {buf.data(), buf.data() + P, buf.data() + 2 * P};
+  uchar* e[3] = {buf.data() + 3 * P, buf.data() + 4 * P, buf.data() + 5 * P};
+  uchar* tmp = buf.data() + 6 * P;
+  uchar* full = buf.data() + 7 * P;  // 255 everywhere
+  // The opened row; per pass, the row's pixels above the low and the high level as bytes (0 or 255),
+  // zero-padded to whole 64-pixel words, and as bits.
+  const int nw = (W + 63) / 64;
+  std::vector<uchar> zero(P, 0), opened(size_t(nw) * 64, 0);
+  Pass passes[2];
+  for (int k = 0; k < n_outs; ++k) {
+    Pass& ps = passes[k];
+    ps.lo = uchar(std::clamp(outs[k].low, 0, 255)), ps.hi = uchar(std::clamp(outs[k].high, 0, 255));
+    ps.in.assign(size_t(nw) * 64, 0);
+    ps.in_high.assign(size_t(nw) * 64, 0);
+    ps.lo_bits.resize(size_t(nw));
+    ps.hi_bits.resize(size_t(nw));
+    ps.row_start.assign(size_t(H) + 1, 0);
+  }
+  std::memset(full, 255, P);
+  for (uchar* r : c) r[0] = r[W + 1] = 255;
+  for (uchar* r : e) r[0] = r[W + 1] = 0;
+
+  for (int t = 0; t <= H + 1; ++t) {
+    if (t < H) {  // contrast row t: the saturated difference (a byte max and subtraction)
+      const uchar* g = gray.ptr<uchar>(t);
+      const uchar* b = background.ptr<uchar>(t);
+      uchar* o = c[t % 3] + 1;
+      if (s > 0) {
+        for (int x = 0; x < W; ++x) o[x] = uchar(std::max(g[x], b[x]) - b[x]);
+      } else {
+        for (int x = 0; x < W; ++x) o[x] = uchar(std::max(g[x], b[x]) - g[x]);
+      }
+    }
+    const int ye = t - 1;  // eroded row ye: min over rows ye-1..ye+1, then over x-1..x+1
+    if (ye >= 0 && ye < H) {
+      const uchar* a = ye - 1 >= 0 ? c[(ye - 1) % 3] : full;
+      const uchar* m = c[ye % 3];
+      const uchar* z = ye + 1 < H ? c[(ye + 1) % 3] : full;
+      for (size_t x = 0; x < P; ++x) tmp[x] = std::min(std::min(a[x], m[x]), z[x]);
+      uchar* o = e[ye % 3] + 1;
+      for (int x = 0; x < W; ++x) o[x] = std::min(std::min(tmp[x], tmp[x + 1]), tmp[x + 2]);
+    }
+    const int y = t - 2;  // opened row y: max over eroded rows y-1..y+1, then over x-1..x+1
+    if (y < 0 || y >= H) continue;
+    {
+      const uchar* a = y - 1 >= 0 ? e[(y - 1) % 3] : zero.data();
+      const uchar* m = e[y % 3];
+      const uchar* z = y + 1 < H ? e[(y + 1) % 3] : zero.data();
+      for (size_t x = 0; x < P; ++x) tmp[x] = std::max(std::max(a[x], m[x]), z[x]);
+      uchar* op = opened.data();
+      for (int x = 0; x < W; ++x) op[x] = std::max(std::max(tmp[x], tmp[x + 1]), tmp[x + 2]);
+    }
+    for (int k = 0; k < n_outs; ++k) {
+      Pass& ps = passes[k];
+      {
+        const uchar* op = opened.data();
+        uchar* il = ps.in.data();
+        uchar* ih = ps.in_high.data();
+        const uchar lo = ps.lo, hi = ps.hi;
+        for (int x = 0; x < W; ++x) {
+          const uchar o = op[x];
+          il[x] = uchar(-int(o > lo));
+          ih[x] = uchar(-int(o > lo && o > hi));
+        }
+      }
+      // Runs above the low level, found 64 pixels at a time in the row's bits.
+      std::vector<Run>& runs = ps.runs;
+      ps.row_start[size_t(y)] = int(runs.size());
+      pack_bits(ps.in.data(), nw, nullptr, ps.lo_bits.data());
+      pack_bits(ps.in_high.data(), nw, ps.lo_bits.data(), ps.hi_bits.data());
+      const uint64_t* lo_bits = ps.lo_bits.data();
+      const uint64_t* hi_bits = ps.hi_bits.data();
+      for (int i = 0; i < nw; ++i)
+        if (hi_bits[i]) ps.above_high += __builtin_popcountll(hi_bits[i]);
+      for (int x = next_bit(lo_bits, nw, 0, 0); x < W;) {
+        const int end = next_bit(lo_bits, nw, x, ~0ULL);  // the padding is clear: end <= W
+        runs.push_back(Run{y, x, end - 1, int(runs.size()), any_bit(hi_bits, x, end - 1)});
+        x = next_bit(lo_bits, nw, end, 0);
+      }
+      // 8-connected to the previous row's runs: overlapping once widened by one pixel.
+      if (y > 0) {
+        int i = ps.row_start[size_t(y - 1)], j = ps.row_start[size_t(y)];
+        const int i_end = ps.row_start[size_t(y)], j_end = int(runs.size());
+        while (i < i_end && j < j_end) {
+          const Run& p = runs[size_t(i)];
+          const Run& q = runs[size_t(j)];
+          if (p.x1 + 1 < q.x0) ++i;
+          else if (q.x1 + 1 < p.x0) ++j;
+          else {
+            unite(runs, i, j);
+            if (p.x1 < q.x1) ++i;
+            else ++j;
+          }
+        }
+      }
+    }
+  }
+  for (int k = 0; k < n_outs; ++k) {
+    passes[k].row_start[size_t(H)] = int(passes[k].runs.size());
+    finish(passes[k], W, H, outs[k]);
+  }
+}
+
+long long label_components(const cv::Mat& gray, const cv::Mat& background, int s, int low, int high, int first_label,
+                           cv::Mat& labels, std::vector<Component>& comps, bool clear) {
+  Labelling out{low, high, first_label, &labels, &comps, clear};
+  label_components(gray, background, s, &out, 1);
+  return out.above_high;
 }
 
 }  // namespace rbx1::vision

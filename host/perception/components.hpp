@@ -24,4 +24,15 @@ struct Component {
 long long label_components(const cv::Mat& gray, const cv::Mat& background, int s, int low, int high, int first_label,
                            cv::Mat& labels, std::vector<Component>& comps, bool clear = false);
 
+// Two labellings of the same polarity at different levels from one streamed pass (the contrast and its opening
+// computed once): each as label_components above would make it, above_high its return value.
+struct Labelling {
+  int low = 0, high = 0, first_label = 1;
+  cv::Mat* labels = nullptr;
+  std::vector<Component>* comps = nullptr;
+  bool clear = false;
+  long long above_high = 0;  // out
+};
+void label_components(const cv::Mat& gray, const cv::Mat& background, int s, Labelling* outs, int n_outs);
+
 }  // namespace rbx1::vision

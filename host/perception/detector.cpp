@@ -11,6 +11,13 @@ bool detect(const cv::Mat& gray, const cv::Mat& background_gray, const DetectorO
   out = Detection{};
   out.size = gray.size();
   Contrast con;
+  bool have_con = false;
+  // The isolation's dark polarity, labelled in the grey shade's own pass when the shade leaves the background
+  // as it is (no shade: the usual case).
+  cv::Mat dark_labels;
+  std::vector<Component> dark_comps;
+  Labelling dark{0, 0, 1, &dark_labels, &dark_comps, true};
+  bool use_dark = false;
   if (!background_gray.empty()) {
     cv::Mat bg = background_gray;
     if (opt.compensate_light && bg.size() == gray.size()) out.light = compensate_light(gray, background_gray, &bg);
@@ -25,15 +32,26 @@ bool detect(const cv::Mat& gray, const cv::Mat& background_gray, const DetectorO
     } else if (opt.shadows && bg.size() == gray.size()) {
       // A grey table: the shade found by its soft edges and its caster; the background in that shade.
       cv::Mat shade, shaded;
-      out.shadow_px = grey_shade_mask(gray, bg, opt.grey_shade, shade, shaded);
-      if (out.shadow_px > 0) bg = shaded;
+      const bool dark_objects = opt.objects != Polarity::Light;
+      if (dark_objects) {  // the levels come from the contrast against this background (same size: no error)
+        have_con = contrast_from_background(gray, bg, opt.objects, opt.isolation.min_contrast, con, error);
+        isolation_levels(con, opt.isolation, dark.low, dark.high);
+      }
+      out.shadow_px = grey_shade_mask(gray, bg, opt.grey_shade, shade, shaded, dark_objects ? &dark : nullptr);
+      if (out.shadow_px > 0) {
+        bg = shaded;
+        have_con = false;
+      } else {
+        use_dark = have_con && !dark_labels.empty();
+      }
     }
-    if (!contrast_from_background(gray, bg, opt.objects, opt.isolation.min_contrast, con, error)) return false;
+    if (!have_con && !contrast_from_background(gray, bg, opt.objects, opt.isolation.min_contrast, con, error))
+      return false;
   } else {
     contrast_auto(gray, opt.objects, opt.isolation.min_contrast, con);
   }
   out.sign = con.sign;
-  if (!isolate(con, opt.isolation, out.isolation, error)) return false;
+  if (!isolate(con, opt.isolation, out.isolation, error, use_dark ? &dark : nullptr)) return false;
   for (Layer& layer : out.isolation.layers) {
     DetectedObject o;
     if (!measure_geometry(layer, o.geometry)) continue;

@@ -61,6 +61,8 @@ bool measure_geometry(const Layer& layer, Geometry& out) {
   const std::vector<cv::Point>& c = layer.outer;
   if (c.empty()) return false;
   out.contour.clear();
+  out.psi.clear();
+  out.rho.clear();
   out.contour.reserve(c.size());
   for (const cv::Point& p : c) {
     cv::Point2d g(gx.at<float>(p), gy.at<float>(p));
@@ -73,12 +75,14 @@ bool measure_geometry(const Layer& layer, Geometry& out) {
   const size_t n = out.contour.size();
   if (n < 3) return false;
   // Each point stands for half of its two neighbouring segments: the scatter becomes a line integral.
+  // (Each segment's length once: seg[i] from point i to point i + 1.)
+  std::vector<double> seg(n);
   for (size_t i = 0; i < n; ++i) {
-    const EdgePoint& a = out.contour[(i + n - 1) % n];
     const EdgePoint& b = out.contour[i];
     const EdgePoint& c2 = out.contour[(i + 1) % n];
-    out.contour[i].w = 0.5 * (std::hypot(b.x - a.x, b.y - a.y) + std::hypot(c2.x - b.x, c2.y - b.y));
+    seg[i] = std::hypot(c2.x - b.x, c2.y - b.y);
   }
+  for (size_t i = 0; i < n; ++i) out.contour[i].w = 0.5 * (seg[(i + n - 1) % n] + seg[i]);
   // Centroid of the region inside the sub-pixel contour (Green's theorem): the contour sits at the object's
   // half level, where a soft shadow or uneven table next to one side barely moves it, whereas the soft
   // layer's edge band would lean towards the shadow. The layer's moments remain the fallback.
@@ -92,11 +96,13 @@ bool measure_geometry(const Layer& layer, Geometry& out) {
   if (std::abs(a2) / 2 >= 0.5 * out.area_px) out.centroid = {cx / (3 * a2), cy / (3 * a2)};
   // r-theta profile (Eq. 3-4) around the centroid, sorted by angle in [0, 2pi).
   std::vector<std::pair<double, double>> tr(n);
+  out.psi.resize(n);
+  out.rho.resize(n);
   for (size_t i = 0; i < n; ++i) {
     double dx = out.contour[i].x - out.centroid.x, dy = out.contour[i].y - out.centroid.y;
-    double th = std::atan2(dy, dx);
+    double th = out.psi[i] = std::atan2(dy, dx);
     if (th < 0) th += 2 * M_PI;
-    tr[i] = {th, std::hypot(dx, dy)};
+    tr[i] = {th, out.rho[i] = std::hypot(dx, dy)};
   }
   std::sort(tr.begin(), tr.end());
   out.theta.resize(n);

@@ -10,6 +10,31 @@ namespace {
 
 double cross(double ax, double ay, double bx, double by) { return ax * by - ay * bx; }
 
+// Whether measure_geometry left the contour's angles and distances about the centroid (the same values).
+bool has_polar(const Geometry& g) { return g.psi.size() == g.contour.size() && g.rho.size() == g.contour.size(); }
+
+// cos and sin of the ray angles j * pi / lines for j in [-2 lines, 2 lines] (index j + 2 lines), computed once
+// per thread and line count (the same values as computing them per crossing).
+struct RayAngles {
+  int lines = 0;
+  std::vector<double> cos, sin;
+};
+const RayAngles& ray_angles(int lines) {
+  thread_local RayAngles t;
+  if (t.lines != lines) {
+    const double step = M_PI / lines;
+    t.cos.resize(4 * size_t(lines) + 1);
+    t.sin.resize(4 * size_t(lines) + 1);
+    for (int j = -2 * lines; j <= 2 * lines; ++j) {
+      const double psi = j * step;
+      t.cos[size_t(j + 2 * lines)] = std::cos(psi);
+      t.sin[size_t(j + 2 * lines)] = std::sin(psi);
+    }
+    t.lines = lines;
+  }
+  return t;
+}
+
 // Line parameters (t) of both contacts from the two opposite rays of line k: the outermost crossing on each
 // side of the centroid. false when one side has no crossing (a one-sided chord is no grip: its "opening" can be 0).
 bool line_from_rays(const RayHits& h, int k, int lines, double& tmin, double& tmax) {
@@ -51,10 +76,12 @@ void close_cracks(const Geometry& g, int lines, const std::vector<char>& valid, 
   const double step = M_PI / lines, h = kContactHalfWidth;
   const int rays = 2 * lines;
   std::vector<double> left(size_t(rays), -1), right(size_t(rays), -1);  // farthest wall point on each side
-  for (const EdgePoint& p : g.contour) {
-    const double x = p.x - g.centroid.x, y = p.y - g.centroid.y, r = std::hypot(x, y);
+  const bool polar = has_polar(g);
+  for (size_t i = 0; i < g.contour.size(); ++i) {
+    const EdgePoint& p = g.contour[i];
+    const double x = p.x - g.centroid.x, y = p.y - g.centroid.y, r = polar ? g.rho[i] : std::hypot(x, y);
     if (r <= 2 * h) continue;  // near the centroid: never a ray's outermost point
-    const double psi = std::atan2(y, x), delta = std::asin(h / r);
+    const double psi = polar ? g.psi[i] : std::atan2(y, x), delta = std::asin(h / r);
     const int j0 = int(std::ceil((psi - delta) / step)), j1 = int(std::floor((psi + delta) / step));
     for (int j = j0; j <= j1; ++j) {
       const size_t q = size_t(((j % rays) + rays) % rays);
@@ -118,11 +145,13 @@ RayHits cast_rays(const Geometry& g, int lines) {
   h.rmin.assign(size_t(rays), -1);
   const auto& c = g.contour;
   const size_t n = c.size();
+  const bool polar = has_polar(g);
+  const RayAngles& ang = ray_angles(lines);
   for (size_t i = 0; i < n; ++i) {
     double ax = c[i].x - g.centroid.x, ay = c[i].y - g.centroid.y;
     double bx = c[(i + 1) % n].x - g.centroid.x, by = c[(i + 1) % n].y - g.centroid.y;
-    double ta = std::atan2(ay, ax);
-    double dt = std::remainder(std::atan2(by, bx) - ta, 2 * M_PI);
+    double ta = polar ? g.psi[i] : std::atan2(ay, ax);
+    double dt = std::remainder((polar ? g.psi[(i + 1) % n] : std::atan2(by, bx)) - ta, 2 * M_PI);
     if (std::abs(dt) > 0.75 * M_PI) continue;  // the segment passes over the centroid itself
     double lo = std::min(ta, ta + dt), hi = std::max(ta, ta + dt);
     double dx = bx - ax, dy = by - ay;
@@ -130,8 +159,13 @@ RayHits cast_rays(const Geometry& g, int lines) {
     // rounding in atan2 at +-pi never loses one.
     int j0 = int(std::ceil((lo - 1e-9) / step)), j1 = int(std::floor((hi + 1e-9) / step));
     for (int j = j0; j <= j1; ++j) {
-      double psi = j * step;
-      double ux = std::cos(psi), uy = std::sin(psi);
+      double ux, uy;
+      if (j >= -2 * lines && j <= 2 * lines) {
+        ux = ang.cos[size_t(j + 2 * lines)], uy = ang.sin[size_t(j + 2 * lines)];
+      } else {
+        const double psi = j * step;
+        ux = std::cos(psi), uy = std::sin(psi);
+      }
       double den = cross(ux, uy, dx, dy);
       if (std::abs(den) < 1e-12) continue;
       double sp = cross(ax, ay, ux, uy) / den;

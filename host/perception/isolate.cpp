@@ -407,9 +407,29 @@ void drop_fringes(const Contrast& con, const IsolationOptions& opt, Isolation& o
 
 }  // namespace
 
-bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, std::string& error) {
+namespace {
+
+double threshold_of(const Contrast& con, const IsolationOptions& opt) {
+  return std::max(opt.min_contrast, opt.noise_k * con.noise_sigma);
+}
+
+double low_of(const IsolationOptions& opt, double threshold) {
+  return std::max(opt.min_contrast / 2, opt.hysteresis * threshold);
+}
+
+}  // namespace
+
+void isolation_levels(const Contrast& con, const IsolationOptions& opt, int& low, int& high) {
+  const double t = threshold_of(con, opt);
+  // 8-bit contrast above t: above floor(t).
+  low = int(std::floor(low_of(opt, t)));
+  high = int(std::floor(t));
+}
+
+bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, std::string& error,
+             const Labelling* dark) {
   const cv::Mat& d = con.gray;
-  out.threshold = std::max(opt.min_contrast, opt.noise_k * con.noise_sigma);
+  out.threshold = threshold_of(con, opt);
   // One binary image per polarity (both in auto mode), labelled apart so that a dark and a light object
   // side by side stay two regions; their labels share one image.
   const std::vector<int> signs = con.sign == 0 ? std::vector<int>{-1, +1} : std::vector<int>{con.sign};
@@ -423,11 +443,20 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
   // while table texture that never reaches the threshold stays out. Cleaning: a 3x3 opening (isolated noise
   // pixels and hairlines). A polarity with nothing above the threshold adds no regions (the usual case for
   // one of the two).
-  const double low = std::max(opt.min_contrast / 2, opt.hysteresis * out.threshold);
+  const double low = low_of(opt, out.threshold);
+  int low_i = 0, high_i = 0;
+  isolation_levels(con, opt, low_i, high_i);
   for (int sg : signs) {
-    // 8-bit contrast above t: above floor(t).
-    fg_pixels += label_components(con.gray, con.background, sg, int(std::floor(low)), int(std::floor(out.threshold)),
-                                  int(regions.size()), out.labels, comps, sg == signs.front());
+    if (dark && sg < 0 && sg == signs.front() && dark->low == low_i && dark->high == high_i &&
+        dark->first_label == 1 && dark->clear && dark->labels && dark->labels->size() == d.size() &&
+        dark->labels->type() == CV_32S) {
+      out.labels = *dark->labels;
+      comps = *dark->comps;
+      fg_pixels += dark->above_high;
+    } else {
+      fg_pixels += label_components(con.gray, con.background, sg, low_i, high_i, int(regions.size()), out.labels, comps,
+                                    sg == signs.front());
+    }
     for (const Component& c : comps) {
       regions.push_back(c);
       out.sign.push_back(int8_t(sg));

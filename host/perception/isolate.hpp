@@ -6,6 +6,7 @@
 #include <opencv2/core.hpp>
 
 #include "background.hpp"
+#include "components.hpp"
 #include "split.hpp"
 #include "types.hpp"
 
@@ -37,7 +38,14 @@ struct Isolation {
   int fringes = 0;                // faint regions attached to an object: its shadow, glare or shade
 };
 
-// false + error only for a frame that is nearly all foreground.
-bool isolate(const Contrast& contrast, const IsolationOptions& opt, Isolation& out, std::string& error);
+// The levels a polarity is labelled at (label_components' low and high): the hysteresis' low level and the
+// threshold, max(min_contrast, noise_k * noise sigma), as 8-bit contrasts.
+void isolation_levels(const Contrast& contrast, const IsolationOptions& opt, int& low, int& high);
+
+// false + error only for a frame that is nearly all foreground. dark (optional): the dark polarity already
+// labelled by the caller (grey_shade_mask's pass on the same images); used when its levels are
+// isolation_levels', from label 1 with the rest of the frame cleared, else the polarity is labelled here.
+bool isolate(const Contrast& contrast, const IsolationOptions& opt, Isolation& out, std::string& error,
+             const Labelling* dark = nullptr);
 
 }  // namespace rbx1::vision

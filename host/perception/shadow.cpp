@@ -38,7 +38,7 @@ bool coloured_background(const cv::Mat& background_bgr, const ShadowOptions& opt
 }
 
 int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreyShadeOptions& opt, cv::Mat& mask,
-                    cv::Mat& shaded) {
+                    cv::Mat& shaded, Labelling* also) {
   mask.release();
   shaded.release();
   if (gray.type() != CV_8U || background.type() != CV_8U || gray.size() != background.size()) return 0;
@@ -49,7 +49,13 @@ int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreySh
   thread_local cv::Mat lab;
   thread_local std::vector<Component> regions;
   if (lab.size() != gray.size()) lab = cv::Mat::zeros(gray.size(), CV_32S);
-  label_components(gray, background, -1, depth - 1, depth - 1, 1, lab, regions);
+  if (also) {
+    Labelling both[2] = {{depth - 1, depth - 1, 1, &lab, &regions, false}, *also};
+    label_components(gray, background, -1, both, 2);
+    *also = both[1];
+  } else {
+    label_components(gray, background, -1, depth - 1, depth - 1, 1, lab, regions);
+  }
   struct Clear {  // (on every way out)
     ~Clear() {
       for (const Component& c : regions) lab(c.box).setTo(0);

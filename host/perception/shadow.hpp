@@ -4,6 +4,7 @@
 #include <opencv2/core.hpp>
 
 #include "background.hpp"
+#include "components.hpp"
 
 namespace rbx1::vision {
 
@@ -38,8 +39,11 @@ struct GreyShadeOptions {
 // `shaded`, the background in the scene's shade (CV_8U: on shade pixels the frame's grey, within 2 px of them
 // the caster's coverage, the background elsewhere); both empty when there are none. The work is done only in
 // the boxes of the regions darker than the table.
+// also (optional): a second labelling of the dark polarity (the isolation's, at its own levels) made in the same
+// streamed pass as the shade's own candidates; left untouched (its labels empty) when the images are not 8-bit
+// of one size.
 int grey_shade_mask(const cv::Mat& gray, const cv::Mat& background, const GreyShadeOptions& opt, cv::Mat& mask,
-                    cv::Mat& shaded);
+                    cv::Mat& shaded, Labelling* also = nullptr);
 
 // true when the background's median chroma reaches opt.min_chroma (the colour shadow test applies).
 bool coloured_background(const cv::Mat& background_bgr, const ShadowOptions& opt);

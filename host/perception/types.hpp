@@ -35,6 +35,9 @@ struct Geometry {
   int edge_pixels = 0;                // pixels of the layer with |G| > t (paper Eq. 1-2): the edge image
   std::vector<EdgePoint> contour;     // outer contour: its edge pixels moved to sub-pixel positions, ordered
   std::vector<double> theta, r;       // r-theta profile (Eq. 3-4): edge points sorted by angle, theta in [0, 2pi)
+  // Per contour point (its order), about the centroid: atan2 in [-pi, pi] and the distance, set by
+  // measure_geometry so the grip's ray casting reuses them; empty (or stale in size) means computed afresh.
+  std::vector<double> psi, rho;
 };
 
 struct Pose {

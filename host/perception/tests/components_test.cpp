@@ -1,6 +1,6 @@
 // components_test.cpp - the streamed binary image and run labelling against OpenCV's own steps (threshold,
 // 3x3 opening, connectedComponentsWithStats): the same labels, numbered the same, the same boxes and areas,
-// also when the pass clears the rest of the label image itself.
+// also when the pass clears the rest of the label image itself, and two levels labelled in one pass.
 #include <gtest/gtest.h>
 
 #include <random>
@@ -84,6 +84,37 @@ TEST(Components, SameAsOpenCVThresholdOpeningAndLabels) {
     for (int s : {-1, +1})
       for (auto [low, high] : {std::pair{6, 12}, {20, 45}, {0, 0}, {60, 254}})
         expect_same_as_opencv(gray, bg, s, low, high);
+  }
+}
+
+// Two labellings in one pass (the grey shade's and the isolation's dark polarity) are each the single pass's:
+// the same labels, components and counts, one written into a kept-zero image, the other clearing garbage.
+TEST(Components, TwoLevelsInOnePassEqualTwoPasses) {
+  for (unsigned seed = 1; seed <= 6; ++seed) {
+    const int w = 41 + 57 * int(seed), h = 23 + 29 * int(seed);
+    cv::Mat gray, bg;
+    scene(w, h, seed, gray, bg);
+    for (int s : {-1, +1})
+      for (auto [a, b] : {std::pair{std::pair{3, 3}, std::pair{6, 12}}, {{20, 45}, {0, 0}}, {{6, 12}, {250, 254}}}) {
+        cv::Mat one_a(gray.size(), CV_32S, cv::Scalar(0)), one_b(gray.size(), CV_32S, cv::Scalar(0));
+        std::vector<Component> ca, cb;
+        const long long ha = label_components(gray, bg, s, a.first, a.second, 1, one_a, ca);
+        const long long hb = label_components(gray, bg, s, b.first, b.second, 3, one_b, cb, true);
+        cv::Mat two_a(gray.size(), CV_32S, cv::Scalar(0)), two_b(gray.size(), CV_32S, cv::Scalar(-5));
+        std::vector<Component> da, db;
+        Labelling both[2] = {{a.first, a.second, 1, &two_a, &da, false}, {b.first, b.second, 3, &two_b, &db, true}};
+        label_components(gray, bg, s, both, 2);
+        EXPECT_EQ(both[0].above_high, ha);
+        EXPECT_EQ(both[1].above_high, hb);
+        EXPECT_EQ(cv::countNonZero(one_a != two_a), 0) << seed << " " << s;
+        EXPECT_EQ(cv::countNonZero(one_b != two_b), 0) << seed << " " << s;
+        ASSERT_EQ(da.size(), ca.size());
+        ASSERT_EQ(db.size(), cb.size());
+        for (size_t i = 0; i < ca.size(); ++i)
+          EXPECT_TRUE(da[i].area == ca[i].area && da[i].box == ca[i].box && da[i].strong == ca[i].strong) << i;
+        for (size_t i = 0; i < cb.size(); ++i)
+          EXPECT_TRUE(db[i].area == cb[i].area && db[i].box == cb[i].box && db[i].strong == cb[i].strong) << i;
+      }
   }
 }
 
