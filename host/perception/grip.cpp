@@ -246,7 +246,8 @@ Grip choose_grip(const Geometry& g, const RayHits& hits, int own_label, const cv
     double acc = 0;
     int n = 0;
     for (int j = k - w; j <= k + w; ++j) {
-      int q = ((j % lines) + lines) % lines;  // line k + lines is line k reversed: same chord
+      // Line k + lines is line k reversed: the same chord (w <= lines, so one wrap at most).
+      const int q = j < 0 ? j + lines : j >= lines ? j - lines : j;
       if (valid[size_t(q)]) acc += hi[size_t(q)] - lo[size_t(q)], ++n;
     }
     smooth[size_t(k)] = acc / n;

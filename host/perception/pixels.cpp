@@ -9,33 +9,65 @@
 
 namespace rbx1::vision {
 
+namespace {
+
+// o[i] = max(a[i], b[i]) for i < n (b may lie inside a's buffer: both are only read).
+inline void max_of(const uchar* __restrict a, const uchar* __restrict b, uchar* __restrict o, size_t n) {
+  for (size_t i = 0; i < n; ++i) o[i] = std::max(a[i], b[i]);
+}
+
+// The maximum over a window of n elements step apart: out[i] = max of src[i + k step], k < n, for i < count
+// (src holds count + (n - 1) step elements). By doubling: maxima over 2, 4, ... elements (ping-ponged
+// between a and b, each holding the source's size), then two overlapping windows of the largest power of two
+// (max is idempotent, so the same values as the plain n - 1 maxima, in about log2(n) + 1 passes).
+inline void window_max(const uchar* src, size_t count, size_t step, int n, uchar* a, uchar* b, uchar* out) {
+  const size_t total = count + size_t(n - 1) * step;
+  const uchar* m = src;
+  size_t len = 1;
+  for (; 2 * len <= size_t(n); len *= 2) {
+    const size_t valid = total - (2 * len - 1) * step;  // windows of 2 len elements that fit
+    max_of(m, m + len * step, a, valid);
+    m = a;
+    std::swap(a, b);
+  }
+  if (len == size_t(n)) std::memcpy(out, m, count);
+  else max_of(m, m + (size_t(n) - len) * step, out, count);
+}
+
+}  // namespace
+
 // The byte and float loops take 32 bytes at a time where the CPU has AVX2 (a clone chosen when the program
 // loads; without fused multiply-adds, so the results are the same either way).
 RBX1_AVX2_CLONES
 void dilate_square(const cv::Mat& src, cv::Mat& dst, int r) {
   CV_Assert(src.type() == CV_8U && r >= 0);
   const int W = src.cols, H = src.rows;
-  // Rows first (each padded with r zeros on both sides), then columns, into a buffer: dst may be src.
-  thread_local std::vector<uchar> pad, rows;
-  pad.assign(size_t(W) + 2 * size_t(r), 0);
-  rows.resize(size_t(W) * size_t(H));
+  const int n = 2 * r + 1;
+  // Rows first (each padded with r zeros on both sides), then columns over rows padded with r zero rows above
+  // and below (cv::dilate's border leaves the maximum unchanged: the same as zeros), into a buffer: dst may be
+  // src.
+  const size_t PW = size_t(W) + 2 * size_t(r), WH = size_t(W) * size_t(H) + 2 * size_t(r) * size_t(W);
+  thread_local std::vector<uchar> pad, ta, tb, rows;
+  pad.assign(PW, 0);
+  ta.resize(std::max(PW, WH));
+  tb.resize(std::max(PW, WH));
+  rows.resize(WH);
+  const size_t band = size_t(r) * size_t(W);  // the r zero rows above and below; the rows between are written
+  std::memset(rows.data(), 0, band);
+  std::memset(rows.data() + WH - band, 0, band);
+  uchar* body = rows.data() + band;  // row 0 of the frame's rows in the padded column buffer
   for (int y = 0; y < H; ++y) {
     std::memcpy(pad.data() + r, src.ptr<uchar>(y), size_t(W));
-    uchar* o = rows.data() + size_t(y) * size_t(W);
-    const uchar* p = pad.data();
-    std::memcpy(o, p, size_t(W));
-    for (int k = 1; k <= 2 * r; ++k)
-      for (int x = 0; x < W; ++x) o[x] = std::max(o[x], p[x + k]);
+    window_max(pad.data(), size_t(W), 1, n, ta.data(), tb.data(), body + size_t(y) * size_t(W));
   }
   dst.create(H, W, CV_8U);
-  for (int y = 0; y < H; ++y) {
-    uchar* o = dst.ptr<uchar>(y);
-    const int y0 = std::max(0, y - r), y1 = std::min(H - 1, y + r);
-    std::memcpy(o, rows.data() + size_t(y0) * size_t(W), size_t(W));
-    for (int yy = y0 + 1; yy <= y1; ++yy) {
-      const uchar* q = rows.data() + size_t(yy) * size_t(W);
-      for (int x = 0; x < W; ++x) o[x] = std::max(o[x], q[x]);
-    }
+  if (dst.isContinuous()) {
+    window_max(rows.data(), size_t(W) * size_t(H), size_t(W), n, ta.data(), tb.data(), dst.ptr<uchar>());
+  } else {
+    thread_local std::vector<uchar> out;
+    out.resize(size_t(W) * size_t(H));
+    window_max(rows.data(), size_t(W) * size_t(H), size_t(W), n, ta.data(), tb.data(), out.data());
+    for (int y = 0; y < H; ++y) std::memcpy(dst.ptr<uchar>(y), out.data() + size_t(y) * size_t(W), size_t(W));
   }
 }
 

@@ -42,7 +42,7 @@ bool same_bits(const cv::Mat& a, const cv::Mat& b) {
 TEST(Pixels, DilateSquareEqualsOpenCVDilate) {
   std::mt19937 rng(5);
   for (int i = 0; i < 60; ++i) {
-    const int w = 1 + int(rng() % 90), h = 1 + int(rng() % 90), r = int(rng() % 4);
+    const int w = 1 + int(rng() % 90), h = 1 + int(rng() % 90), r = i % 10 == 9 ? 8 : int(rng() % 4);
     cv::Mat src(h, w, CV_8U);
     cv::randu(src, 0, 256);
     cv::threshold(src, src, 200 + int(rng() % 50), 255, cv::THRESH_TOZERO);  // sparse, as a mask is
