@@ -276,6 +276,33 @@ void label_components(const cv::Mat& gray, const cv::Mat& background, int s, Lab
   }
 }
 
+namespace {
+
+struct KeptFrame {
+  cv::Mat frame;
+  std::vector<cv::Rect> written;
+};
+thread_local KeptFrame kept;
+
+}  // namespace
+
+cv::Mat label_frame(cv::Size size) {
+  // (refcount 1: only `kept` refers to the pixels; an atomic count, so a holder on another thread is seen too.)
+  if (!kept.frame.empty() && kept.frame.size() == size && kept.frame.u && kept.frame.u->refcount == 1) {
+    for (const cv::Rect& r : kept.written) kept.frame(r).setTo(0);
+  } else {
+    kept.frame = cv::Mat(size, CV_32S, cv::Scalar(0));  // a new buffer (Mat::zeros would zero a held one in place)
+  }
+  kept.written.clear();
+  return kept.frame;
+}
+
+void label_frame_written(const cv::Mat& frame, cv::Rect box) {
+  if (frame.data != kept.frame.data || frame.size() != kept.frame.size()) return;
+  box &= cv::Rect(0, 0, frame.cols, frame.rows);
+  if (box.area() > 0) kept.written.push_back(box);
+}
+
 long long label_components(const cv::Mat& gray, const cv::Mat& background, int s, int low, int high, int first_label,
                            cv::Mat& labels, std::vector<Component>& comps, bool clear) {
   Labelling out{low, high, first_label, &labels, &comps, clear};

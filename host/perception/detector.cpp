@@ -16,7 +16,7 @@ bool detect(const cv::Mat& gray, const cv::Mat& background_gray, const DetectorO
   // as it is (no shade: the usual case).
   cv::Mat dark_labels;
   std::vector<Component> dark_comps;
-  Labelling dark{0, 0, 1, &dark_labels, &dark_comps, true};
+  Labelling dark{0, 0, 1, &dark_labels, &dark_comps, false, -1};  // above_high stays -1 unless labelled
   bool use_dark = false;
   if (!background_gray.empty()) {
     cv::Mat bg = background_gray;
@@ -36,13 +36,14 @@ bool detect(const cv::Mat& gray, const cv::Mat& background_gray, const DetectorO
       if (dark_objects) {  // the levels come from the contrast against this background (same size: no error)
         have_con = contrast_from_background(gray, bg, opt.objects, opt.isolation.min_contrast, con, error);
         isolation_levels(con, opt.isolation, dark.low, dark.high);
+        dark_labels = label_frame(gray.size());
       }
       out.shadow_px = grey_shade_mask(gray, bg, opt.grey_shade, shade, shaded, dark_objects ? &dark : nullptr);
       if (out.shadow_px > 0) {
         bg = shaded;
         have_con = false;
       } else {
-        use_dark = have_con && !dark_labels.empty();
+        use_dark = have_con && dark.above_high >= 0;
       }
     }
     if (!have_con && !contrast_from_background(gray, bg, opt.objects, opt.isolation.min_contrast, con, error))

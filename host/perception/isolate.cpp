@@ -196,6 +196,7 @@ int local_table(const Contrast& con, cv::Mat& labels, int label, int sign, doubl
   if (gb.x == 0 || gb.y == 0 || gb.br().x == r.width || gb.br().y == r.height) return 0;
   cv::Mat lw = labels(r);
   lw.setTo(label, grown);
+  label_frame_written(labels, r);
   box = (gb + r.tl()) | box;
   return table;
 }
@@ -451,7 +452,7 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
   // One binary image per polarity (both in auto mode), labelled apart so that a dark and a light object
   // side by side stay two regions; their labels share one image.
   const std::vector<int> signs = con.sign == 0 ? std::vector<int>{-1, +1} : std::vector<int>{con.sign};
-  out.labels = cv::Mat(d.size(), CV_32S);  // zeroed by the first polarity's pass, as it writes its labels
+  out.labels = cv::Mat();  // the dark polarity's, or a zeroed frame for the first pass below
   out.obstacle.assign(1, 0);
   out.sign.assign(1, 0);
   std::vector<Component> regions(1), comps;
@@ -466,15 +467,16 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
   isolation_levels(con, opt, low_i, high_i);
   for (int sg : signs) {
     if (dark && sg < 0 && sg == signs.front() && dark->low == low_i && dark->high == high_i &&
-        dark->first_label == 1 && dark->clear && dark->labels && dark->labels->size() == d.size() &&
+        dark->first_label == 1 && !dark->clear && dark->labels && dark->labels->size() == d.size() &&
         dark->labels->type() == CV_32S) {
       out.labels = *dark->labels;
       comps = *dark->comps;
       fg_pixels += dark->above_high;
     } else {
-      fg_pixels += label_components(con.gray, con.background, sg, low_i, high_i, int(regions.size()), out.labels, comps,
-                                    sg == signs.front());
+      if (out.labels.empty()) out.labels = label_frame(d.size());
+      fg_pixels += label_components(con.gray, con.background, sg, low_i, high_i, int(regions.size()), out.labels, comps);
     }
+    for (const Component& c : comps) label_frame_written(out.labels, c.box);
     for (const Component& c : comps) {
       regions.push_back(c);
       out.sign.push_back(int8_t(sg));

@@ -44,7 +44,8 @@ void isolation_levels(const Contrast& contrast, const IsolationOptions& opt, int
 
 // false + error only for a frame that is nearly all foreground. dark (optional): the dark polarity already
 // labelled by the caller (grey_shade_mask's pass on the same images); used when its levels are
-// isolation_levels', from label 1 with the rest of the frame cleared, else the polarity is labelled here.
+// isolation_levels', from label 1 into a zeroed frame (label_frame, no `clear`), else the polarity is labelled
+// here. The labels go into label_frame's frame, each region's box noted as written.
 bool isolate(const Contrast& contrast, const IsolationOptions& opt, Isolation& out, std::string& error,
              const Labelling* dark = nullptr);
 

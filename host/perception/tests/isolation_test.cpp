@@ -268,5 +268,36 @@ TEST(Isolation, LocalTableLevelBesideAnObjectKeepsItsFaintRelief) {
   EXPECT_EQ(box, cv::Rect(c.x - r, c.y - r, 2 * r + 1, 2 * r + 1));
 }
 
+// The label frame is kept between frames and only the boxes written into it are cleared (label_frame): a frame
+// labelled after another one's detection is released gives the same labels and objects as a new, zeroed frame
+// (made while the first result is still held), with a known background and without, both polarities.
+TEST(Isolation, AKeptLabelFrameIsClearedLikeANewOne) {
+  Scene s;
+  s.noise_sigma = 3;
+  const cv::Mat empty = to_gray8(render(s, {}));
+  cv::Mat a = to_gray8(render(s, {rectangle({120, 100}, 150, 40, 30), ellipse({500, 380}, 70, 40, 10),
+                                  triangle({330, 240}, 120, 5), star({520, 110}, 60, 25, 5, 0)}));
+  cv::Mat b = to_gray8(render(s, {ellipse({200, 330}, 60, 30, -20), rectangle({420, 150}, 120, 30, 70)}));
+  cv::rectangle(b, cv::Rect(60, 60, 50, 30), cv::Scalar(250), cv::FILLED);  // a light object too
+  for (const cv::Mat& bg : {empty, cv::Mat()}) {
+    std::string e;
+    Detection first;
+    ASSERT_TRUE(detect(a, bg, {}, nullptr, first, e)) << e;
+    ASSERT_GE(first.objects.size(), 3u);
+    first = Detection{};  // released: the next frame reuses its label frame
+    Detection reused, fresh;
+    ASSERT_TRUE(detect(b, bg, {}, nullptr, reused, e)) << e;
+    ASSERT_TRUE(detect(b, bg, {}, nullptr, fresh, e)) << e;  // `reused` still holds the kept frame
+    ASSERT_NE(reused.isolation.labels.data, fresh.isolation.labels.data);
+    EXPECT_EQ(cv::countNonZero(reused.isolation.labels != fresh.isolation.labels), 0);
+    ASSERT_EQ(reused.objects.size(), fresh.objects.size());
+    EXPECT_EQ(reused.objects.size(), 3u);
+    for (size_t i = 0; i < fresh.objects.size(); ++i) {
+      EXPECT_EQ(reused.objects[i].geometry.centroid, fresh.objects[i].geometry.centroid) << i;
+      EXPECT_EQ(reused.objects[i].grip.opening_px, fresh.objects[i].grip.opening_px) << i;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace rbx1::vision
