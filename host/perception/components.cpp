@@ -287,8 +287,10 @@ thread_local KeptFrame kept;
 }  // namespace
 
 cv::Mat label_frame(cv::Size size) {
-  // (refcount 1: only `kept` refers to the pixels; an atomic count, so a holder on another thread is seen too.)
-  if (!kept.frame.empty() && kept.frame.size() == size && kept.frame.u && kept.frame.u->refcount == 1) {
+  // (refcount 1: only `kept` refers to the pixels. OpenCV changes the count atomically; it is read atomically too,
+  // so a holder releasing its copy on another thread is seen, without a data race.)
+  if (!kept.frame.empty() && kept.frame.size() == size && kept.frame.u &&
+      __atomic_load_n(&kept.frame.u->refcount, __ATOMIC_ACQUIRE) == 1) {
     for (const cv::Rect& r : kept.written) kept.frame(r).setTo(0);
   } else {
     kept.frame = cv::Mat(size, CV_32S, cv::Scalar(0));  // a new buffer (Mat::zeros would zero a held one in place)
