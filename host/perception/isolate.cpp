@@ -201,6 +201,23 @@ int local_table(const Contrast& con, cv::Mat& labels, int label, int sign, doubl
   return table;
 }
 
+// One row of the contrast against the table, 8-bit and saturated at 0: sign * (gray - background) - table for a
+// polarity (the local table's level taken off), |gray - background| for a two-colour object (sign 0, no table).
+// Inline, so that it runs in the AVX2 clone of its caller.
+inline void contrast_row(const uchar* gr, const uchar* br, int sign, int table, int W, uchar* cr) {
+  if (sign != 0 && table == 0) {  // the saturated difference as a byte max and subtraction
+    const uchar* hi = sign > 0 ? gr : br;
+    const uchar* lo = sign > 0 ? br : gr;
+    for (int x = 0; x < W; ++x) cr[x] = uchar(std::max(hi[x], lo[x]) - lo[x]);
+  } else if (sign > 0) {
+    for (int x = 0; x < W; ++x) cr[x] = uchar(std::clamp(int(gr[x]) - int(br[x]) - table, 0, 255));
+  } else if (sign < 0) {
+    for (int x = 0; x < W; ++x) cr[x] = uchar(std::clamp(int(br[x]) - int(gr[x]) - table, 0, 255));
+  } else {
+    for (int x = 0; x < W; ++x) cr[x] = uchar(std::abs(int(gr[x]) - int(br[x])));
+  }
+}
+
 // Soft layer of one component in one fused pass: s = (c - lo) / (hi - lo) clamped, with lo = 2 sigma and
 // hi = level - 2 sigma around the object's contrast level (median over its pixels), so noise leaves the
 // interior at 1 and the table at 0 while the anti-aliased edge keeps its covered fraction (half level =
@@ -229,17 +246,7 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign,
     uchar* cr = cbuf.data() + size_t(y) * size_t(W);
     uchar* orow = obuf.data() + size_t(y) * size_t(W);
     uchar* zrow = zbuf.data() + size_t(y) * size_t(W);
-    if (sign != 0 && table == 0) {  // the saturated difference as a byte max and subtraction
-      const uchar* hi = sign > 0 ? gr : br;
-      const uchar* lo = sign > 0 ? br : gr;
-      for (int x = 0; x < W; ++x) cr[x] = uchar(std::max(hi[x], lo[x]) - lo[x]);
-    } else if (sign > 0) {
-      for (int x = 0; x < W; ++x) cr[x] = uchar(std::clamp(int(gr[x]) - int(br[x]) - table, 0, 255));
-    } else if (sign < 0) {
-      for (int x = 0; x < W; ++x) cr[x] = uchar(std::clamp(int(br[x]) - int(gr[x]) - table, 0, 255));
-    } else {
-      for (int x = 0; x < W; ++x) cr[x] = uchar(std::abs(int(gr[x]) - int(br[x])));
-    }
+    contrast_row(gr, br, sign, table, W, cr);
     for (int x = 0; x < W; ++x) orow[x] = uchar(-int(lr[x] == label));
     for (int x = 0; x < W; ++x) zrow[x] = uchar(-int(lr[x] == 0));
     int row_n = 0;
@@ -569,9 +576,7 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
         cv::Mat contrast(layer.roi.size(), CV_8U);
         const cv::Mat g = con.gray(layer.roi), bg = con.background(layer.roi);
         for (int y = 0; y < contrast.rows; ++y)
-          for (int x = 0; x < contrast.cols; ++x)
-            contrast.at<uchar>(y, x) =
-                uchar(std::clamp(sg * (int(g.at<uchar>(y, x)) - int(bg.at<uchar>(y, x))) - table, 0, 255));
+          contrast_row(g.ptr<uchar>(y), bg.ptr<uchar>(y), sg, table, contrast.cols, contrast.ptr<uchar>(y));
         cut_between_levels(contrast, con.noise_sigma, bodies, parts);
       }
       // Cut by the edge, a crowd (three bodies or more) is kept apart; one body and its neighbour may be an
