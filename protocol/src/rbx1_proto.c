@@ -70,6 +70,63 @@ uint32_t rbx1_crc32(const uint8_t *data, size_t n) {
   return ~crc;
 }
 
+/* Reed-Solomon parity (PROTOCOL.md "Frame"): GF(2^8) with the polynomial 0x11D, generator g(x) = (x + 1)(x + 2) =
+ * x^2 + 3x + 2. Multiplying by 2 and 3 is a shift and an XOR, so encoding and the syndromes need no table; locating
+ * an error takes one lookup in the discrete-log table below (256 bytes, in flash on the AVR). */
+#define GF_TIMES2(x) ((uint8_t)(((x) << 1) ^ (((x) & 0x80u) ? 0x1Du : 0u)))
+
+static const uint8_t gf_log[256] PROGMEM = {
+      0,   0,   1,  25,   2,  50,  26, 198,   3, 223,  51, 238,  27, 104, 199,  75,
+      4, 100, 224,  14,  52, 141, 239, 129,  28, 193, 105, 248, 200,   8,  76, 113,
+      5, 138, 101,  47, 225,  36,  15,  33,  53, 147, 142, 218, 240,  18, 130,  69,
+     29, 181, 194, 125, 106,  39, 249, 185, 201, 154,   9, 120,  77, 228, 114, 166,
+      6, 191, 139,  98, 102, 221,  48, 253, 226, 152,  37, 179,  16, 145,  34, 136,
+     54, 208, 148, 206, 143, 150, 219, 189, 241, 210,  19,  92, 131,  56,  70,  64,
+     30,  66, 182, 163, 195,  72, 126, 110, 107,  58,  40,  84, 250, 133, 186,  61,
+    202,  94, 155, 159,  10,  21, 121,  43,  78, 212, 229, 172, 115, 243, 167,  87,
+      7, 112, 192, 247, 140, 128,  99,  13, 103,  74, 222, 237,  49, 197, 254,  24,
+    227, 165, 153, 119,  38, 184, 180, 124,  17,  68, 146, 217,  35,  32, 137,  46,
+     55,  63, 209,  91, 149, 188, 207, 205, 144, 135, 151, 178, 220, 252, 190,  97,
+    242,  86, 211, 171,  20,  42,  93, 158, 132,  60,  57,  83,  71, 109,  65, 162,
+     31,  45,  67, 216, 183, 123, 164, 118, 196,  23,  73, 236, 127,  12, 111, 246,
+    108, 161,  59,  82,  41, 157,  85, 170, 251,  96, 134, 177, 187, 204,  62,  90,
+    203,  89,  95, 176, 156, 169, 160,  81,  11, 245,  22, 235, 122, 117,  44, 215,
+     79, 174, 213, 233, 230, 231, 173, 232, 116, 214, 244, 234, 168,  80,  88, 175,
+};
+#ifdef __AVR__
+#define GF_LOG(x) pgm_read_byte(&gf_log[x])
+#else
+#define GF_LOG(x) (gf_log[x])
+#endif
+
+void rbx1_fec_parity(const uint8_t *data, size_t n, uint8_t parity[RBX1_FEC_BYTES]) {
+  uint8_t hi = 0, lo = 0; /* the remainder of data(x) * x^2 divided by g(x) */
+  while (n--) {
+    uint8_t f = (uint8_t)(*data++ ^ hi), f2 = GF_TIMES2(f);
+    hi = (uint8_t)(lo ^ f2 ^ f); /* lo + 3f */
+    lo = f2;                     /* 2f */
+  }
+  parity[0] = hi;
+  parity[1] = lo;
+}
+
+int rbx1_fec_locate(const uint8_t *code, size_t n, uint8_t *error) {
+  uint8_t s0 = 0, s1 = 0; /* the codeword's values at x = 1 and x = 2 (Horner, first byte the highest power) */
+  size_t i;
+  int power;
+  for (i = 0; i < n; i++) {
+    s0 ^= code[i];
+    s1 = (uint8_t)(GF_TIMES2(s1) ^ code[i]);
+  }
+  if (s0 == 0 && s1 == 0) return -1;
+  if (s0 == 0 || s1 == 0) return -2; /* one error e at power k gives s0 = e and s1 = e * 2^k, both non-zero */
+  power = (int)GF_LOG(s1) - (int)GF_LOG(s0);
+  if (power < 0) power += 255;
+  if ((size_t)power >= n) return -2;
+  *error = s0;
+  return (int)(n - 1 - (size_t)power);
+}
+
 size_t rbx1_frame_encode(uint8_t *out, size_t cap, uint8_t seq, uint8_t type, const uint8_t *payload, uint8_t len) {
   size_t total = (size_t)len + RBX1_FRAME_OVERHEAD;
   uint32_t crc;
@@ -84,11 +141,14 @@ size_t rbx1_frame_encode(uint8_t *out, size_t cap, uint8_t seq, uint8_t type, co
   out[5 + len] = (uint8_t)(crc >> 8);
   out[6 + len] = (uint8_t)(crc >> 16);
   out[7 + len] = (uint8_t)(crc >> 24);
+  rbx1_fec_parity(out + 1, (size_t)len + 7, out + 8 + len);
   return total;
 }
 
 void rbx1_decoder_init(rbx1_decoder *d, rbx1_on_frame on_frame, rbx1_on_reject on_reject, void *ctx) {
   d->n = 0;
+  d->tried = 0;
+  d->skip = 0;
   d->on_frame = on_frame;
   d->on_reject = on_reject;
   d->ctx = ctx;
@@ -100,46 +160,111 @@ static void decoder_shift(rbx1_decoder *d, uint8_t from) {
   while (i < d->n && d->buf[i] != RBX1_SYNC) i++;
   if (i < d->n) memmove(d->buf, d->buf + i, (size_t)(d->n - i));
   d->n = (uint8_t)(d->n - i);
+  d->tried = 0;
 }
 
-/* Decides the candidate(s) in buf as far as the bytes allow. Every pass either returns or discards at least one
- * byte for good, so the total work is bounded by the bytes fed (a rejection costs at most one CRC over 61 bytes).
- * Afterwards n < LEN+8 <= RBX1_MAX_FRAME, so the next byte always fits. */
+/* The payload length every frame of this TYPE has (requests and responses have fixed lengths), or -1: unknown
+ * types, and 0x7F (a NAK has 1 byte, a probe none). */
+static int implied_len(uint8_t type) {
+  return (type & 0x80u) ? rbx1_response_len((uint8_t)(type & 0x7Fu)) : rbx1_request_len(type);
+}
+
+/* 1 if buf holds a frame of payload length len whose CRC holds. */
+static int crc_holds(const rbx1_decoder *d, uint8_t len) {
+  const uint8_t *c = d->buf + 4 + len;
+  uint32_t rx = (uint32_t)c[0] | ((uint32_t)c[1] << 8) | ((uint32_t)c[2] << 16) | ((uint32_t)c[3] << 24);
+  return rbx1_crc32(d->buf + 1, (size_t)len + 3) == rx;
+}
+
+/* The frame read with its parity: one damaged byte after LEN is corrected (LEN itself was taken as read, so an
+ * error located there contradicts this reading). The buffer keeps the correction only if the CRC then holds. */
+static int corrected_holds(rbx1_decoder *d, uint8_t len) {
+  uint8_t error;
+  int at = rbx1_fec_locate(d->buf + 1, (size_t)len + 9, &error);
+  if (at <= 0) return 0;
+  d->buf[1 + at] ^= error;
+  if (crc_holds(d, len)) return 1;
+  d->buf[1 + at] ^= error;
+  return 0;
+}
+
+/* The frame read with the length its TYPE implies in place of LEN (LEN the one damaged byte): its syndromes must
+ * vanish and its CRC hold. The buffer keeps the new LEN only if they do. */
+static int relength_holds(rbx1_decoder *d, uint8_t len) {
+  uint8_t was = d->buf[1], error;
+  d->buf[1] = len;
+  if (rbx1_fec_locate(d->buf + 1, (size_t)len + 9, &error) == -1 && crc_holds(d, len)) return 1;
+  d->buf[1] = was;
+  return 0;
+}
+
+static void deliver(rbx1_decoder *d, uint8_t len) {
+  const uint8_t *c = d->buf + 4 + len;
+  rbx1_frame f;
+  f.seq = d->buf[2];
+  f.type = d->buf[3];
+  f.len = len;
+  f.crc = (uint32_t)c[0] | ((uint32_t)c[1] << 8) | ((uint32_t)c[2] << 16) | ((uint32_t)c[3] << 24);
+  memcpy(f.payload, d->buf + 4, len);
+  if (d->n >= len + RBX1_FRAME_OVERHEAD) {
+    decoder_shift(d, (uint8_t)(len + RBX1_FRAME_OVERHEAD)); /* bytes after it (after a rescan) stay */
+  } else {                                                  /* delivered at its CRC: its parity is still to come */
+    d->skip = (uint8_t)(len + RBX1_FRAME_OVERHEAD - d->n);
+    d->n = 0;
+    d->tried = 0;
+  }
+  if (d->on_frame) d->on_frame(d->ctx, &f);
+}
+
+/* Decides the candidate in buf as far as the bytes allow. A candidate has up to three readings, each tried once,
+ * when its last byte is in: as sent (CRC at LEN+8 bytes), with one byte corrected (parity at LEN+10), and with the
+ * length its TYPE implies in place of LEN (at that length + 10). The first that holds delivers the frame; when every
+ * reading has failed, the candidate is rejected and the hunt resumes at the byte after its SYNC. Every pass either
+ * returns or discards at least one byte for good, so the total work is bounded by the bytes fed. Afterwards n is
+ * below the candidate's last reading's end <= RBX1_MAX_FRAME, so the next byte always fits. */
 static void decoder_settle(rbx1_decoder *d) {
   for (;;) {
-    uint8_t len, seq;
-    if (d->n < 3) return; /* SYNC LEN SEQ: BAD_LENGTH is reported with the SEQ so the sender can be NAKed */
+    uint8_t len, seq, last = 0, end, delivered = 0;
+    int alt;
+    if (d->n < 4) return; /* SYNC LEN SEQ TYPE */
     len = d->buf[1];
     seq = d->buf[2];
-    if (len > RBX1_MAX_PAYLOAD) {
-      decoder_shift(d, 1); /* resume hunting at the byte after the rejected SYNC */
-      if (d->on_reject) d->on_reject(d->ctx, RBX1_BAD_LENGTH, seq, 1);
-      continue;
-    }
-    if (d->n < (uint8_t)(len + RBX1_FRAME_OVERHEAD)) return;
-    {
-      const uint8_t *c = d->buf + 4 + len;
-      uint32_t rx = (uint32_t)c[0] | ((uint32_t)c[1] << 8) | ((uint32_t)c[2] << 16) | ((uint32_t)c[3] << 24);
-      if (rbx1_crc32(d->buf + 1, (size_t)len + 3) == rx) {
-        rbx1_frame f;
-        f.seq = seq;
-        f.type = d->buf[3];
-        f.len = len;
-        f.crc = rx;
-        memcpy(f.payload, d->buf + 4, len);
-        decoder_shift(d, (uint8_t)(len + RBX1_FRAME_OVERHEAD)); /* bytes after it (after a rescan) stay */
-        if (d->on_frame) d->on_frame(d->ctx, &f);
-      } else {
-        decoder_shift(d, 1);
-        if (d->on_reject) d->on_reject(d->ctx, RBX1_BAD_CRC, seq, 1);
+    alt = implied_len(d->buf[3]);
+    if (alt == (int)len) alt = -1;
+    if (len <= RBX1_MAX_PAYLOAD) last = (uint8_t)(len + RBX1_FRAME_OVERHEAD);
+    if (alt >= 0 && alt + RBX1_FRAME_OVERHEAD > last) last = (uint8_t)(alt + RBX1_FRAME_OVERHEAD);
+    for (end = (uint8_t)(d->tried + 1); end <= d->n && end <= last; end++) {
+      d->tried = end;
+      if (len <= RBX1_MAX_PAYLOAD && end == len + RBX1_FRAME_OVERHEAD - RBX1_FEC_BYTES && crc_holds(d, len)) {
+        delivered = 1;
+        deliver(d, len);
+        break;
+      }
+      if (len <= RBX1_MAX_PAYLOAD && end == len + RBX1_FRAME_OVERHEAD && corrected_holds(d, len)) {
+        delivered = 1;
+        deliver(d, len);
+        break;
+      }
+      if (alt >= 0 && end == alt + RBX1_FRAME_OVERHEAD && relength_holds(d, (uint8_t)alt)) {
+        delivered = 1;
+        deliver(d, (uint8_t)alt);
+        break;
       }
     }
+    if (delivered) continue; /* the next candidate, if any, is in buf */
+    if (d->n < last) return;
+    decoder_shift(d, 1); /* resume hunting at the byte after the rejected SYNC */
+    if (d->on_reject) d->on_reject(d->ctx, len <= RBX1_MAX_PAYLOAD ? RBX1_BAD_CRC : RBX1_BAD_LENGTH, seq, 1);
   }
 }
 
 void rbx1_decoder_feed(rbx1_decoder *d, const uint8_t *data, size_t n) {
   size_t i;
   for (i = 0; i < n; i++) {
+    if (d->skip) { /* a delivered frame's parity */
+      d->skip--;
+      continue;
+    }
     if (d->n == 0 && data[i] != RBX1_SYNC) continue; /* hunting */
     d->buf[d->n++] = data[i];
     decoder_settle(d);
@@ -147,7 +272,8 @@ void rbx1_decoder_feed(rbx1_decoder *d, const uint8_t *data, size_t n) {
 }
 
 int rbx1_decoder_reset(rbx1_decoder *d) {
-  int pending = d->n > 0;
+  int pending = rbx1_decoder_pending(d);
+  d->skip = 0; /* parity that never came: a peer of version 4 sends none */
   /* Every byte held is older than the timeout: drop the candidate's SYNC and scan the rest again, as after a
    * rejection, so a whole frame hidden inside is still delivered; a new candidate left incomplete is as stale, and
    * goes the same way. */
@@ -158,4 +284,4 @@ int rbx1_decoder_reset(rbx1_decoder *d) {
   return pending;
 }
 
-int rbx1_decoder_pending(const rbx1_decoder *d) { return d->n > 0; }
+int rbx1_decoder_pending(const rbx1_decoder *d) { return d->n > 0 || d->skip > 0; }

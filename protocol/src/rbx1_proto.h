@@ -10,10 +10,11 @@
 extern "C" {
 #endif
 
-#define RBX1_PROTO_VERSION 4
+#define RBX1_PROTO_VERSION 5
 #define RBX1_SYNC 0xA5
 #define RBX1_MAX_PAYLOAD 58
-#define RBX1_FRAME_OVERHEAD 8 /* SYNC LEN SEQ TYPE + 4 CRC bytes */
+#define RBX1_FRAME_OVERHEAD 10 /* SYNC LEN SEQ TYPE, 4 CRC bytes, 2 parity bytes */
+#define RBX1_FEC_BYTES 2
 #define RBX1_MAX_FRAME (RBX1_MAX_PAYLOAD + RBX1_FRAME_OVERHEAD)
 #define RBX1_JOINTS 6
 #define RBX1_RESPONSE(type) ((uint8_t)((type) | 0x80u))
@@ -25,6 +26,14 @@ extern "C" {
  * 0xCBF43926. rbx1_crc32_update steps the register alone: start from 0xFFFFFFFF, invert the end result. */
 uint32_t rbx1_crc32_update(uint32_t crc, uint8_t byte);
 uint32_t rbx1_crc32(const uint8_t *data, size_t n);
+
+/* Reed-Solomon over GF(2^8) (polynomial 0x11D, generator (x + 1)(x + 2)): the 2 parity bytes that follow the CRC
+ * and correct any one damaged byte from LEN to the last parity byte (PROTOCOL.md "Frame"). rbx1_fec_parity writes the
+ * parity of data[0..n); rbx1_fec_locate takes a codeword (data then its parity, n <= 255 bytes) and returns -1 when
+ * its syndromes show no error, -2 when one damaged byte cannot explain them, or the index i of the one damaged byte
+ * (code[i] ^ *error is the byte sent). */
+void rbx1_fec_parity(const uint8_t *data, size_t n, uint8_t parity[RBX1_FEC_BYTES]);
+int rbx1_fec_locate(const uint8_t *code, size_t n, uint8_t *error);
 
 /* Writes one frame into out (cap bytes). Returns the frame length, or 0 if len > RBX1_MAX_PAYLOAD or cap is too small. */
 size_t rbx1_frame_encode(uint8_t *out, size_t cap, uint8_t seq, uint8_t type, const uint8_t *payload, uint8_t len);
@@ -46,23 +55,27 @@ typedef void (*rbx1_on_reject)(void *ctx, uint8_t status, uint8_t seq, uint8_t h
 /* Streaming decoder: resynchronises after garbage and rescans the bytes of a rejected frame. */
 typedef struct {
   uint8_t buf[RBX1_MAX_FRAME];
-  uint8_t n; /* bytes of the current candidate frame in buf, SYNC included */
+  uint8_t n;     /* bytes of the current candidate frame in buf, SYNC included */
+  uint8_t tried; /* the candidate's readings that end at or before this many bytes have been tried */
+  uint8_t skip;  /* parity bytes still to come of a frame delivered before them */
   rbx1_on_frame on_frame;
   rbx1_on_reject on_reject;
   void *ctx;
 } rbx1_decoder;
 
 void rbx1_decoder_init(rbx1_decoder *d, rbx1_on_frame on_frame, rbx1_on_reject on_reject, void *ctx);
-/* Feeds received bytes; callbacks run from inside this call, possibly several times. A rejection resumes the hunt
- * at the byte after the rejected SYNC. BAD_LENGTH is decided when the SEQ byte arrives, so has_seq is 1 for every
- * rejection this decoder reports. Work is bounded: each rejection discards at least one byte, and costs at most
- * one CRC over 61 bytes (ATmega2560 at 16 MHz: about 300 cycles per byte of valid traffic, 11.4k cycles worst case
- * for one byte). Callbacks may call rbx1_decoder_reset but must not feed the same decoder. */
+/* Feeds received bytes; callbacks run from inside this call, possibly several times. A frame whose CRC holds is
+ * delivered at its last CRC byte (its 2 parity bytes are skipped when they come); one whose CRC fails is read again
+ * with its parity (one byte corrected), then with the payload length its TYPE implies in place of LEN (a damaged
+ * LEN). A rejection resumes the hunt at the byte after the rejected SYNC; it is decided once the TYPE byte is in, so
+ * has_seq is 1 for every rejection this decoder reports. Work is bounded: each rejection discards at least one
+ * byte, and costs at most three readings (a CRC each, and two syndromes over 67 bytes). Callbacks may call
+ * rbx1_decoder_reset but must not feed the same decoder. */
 void rbx1_decoder_feed(rbx1_decoder *d, const uint8_t *data, size_t n);
 /* Inter-byte timeout: drops the partial frame's SYNC and rescans the bytes after it (a complete frame among them is
  * delivered through the callbacks; an incomplete rest is dropped too). Returns 1 if a frame was pending. */
 int rbx1_decoder_reset(rbx1_decoder *d);
-/* 1 while a frame has started but not completed. */
+/* 1 while a frame has started but not completed, or its parity bytes are still to come. */
 int rbx1_decoder_pending(const rbx1_decoder *d);
 
 #ifdef __cplusplus

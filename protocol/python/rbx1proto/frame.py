@@ -4,7 +4,8 @@ from collections import namedtuple
 
 SYNC = 0xA5
 MAX_PAYLOAD = 58
-OVERHEAD = 8  # SYNC LEN SEQ TYPE and the 4 CRC bytes
+FEC_BYTES = 2
+OVERHEAD = 10  # SYNC LEN SEQ TYPE, the 4 CRC bytes and the 2 parity bytes
 MAX_FRAME = MAX_PAYLOAD + OVERHEAD
 BAD_CRC = 1     # = messages.Status.BAD_CRC (kept literal so framing does not depend on the message table)
 BAD_LENGTH = 2  # = messages.Status.BAD_LENGTH
@@ -18,32 +19,87 @@ def crc32(data):
     return zlib.crc32(bytes(data)) & 0xFFFFFFFF
 
 
+def _times2(x):
+    """x * 2 in GF(2^8) with the polynomial 0x11D."""
+    x <<= 1
+    return (x ^ 0x11D) if x & 0x100 else x
+
+
+_LOG = [0] * 256
+_x = 1
+for _i in range(255):
+    _LOG[_x] = _i
+    _x = _times2(_x)
+
+
+def fec_parity(data):
+    """The 2 Reed-Solomon parity bytes of data (generator (x + 1)(x + 2) = x^2 + 3x + 2 over GF(2^8), 0x11D)."""
+    hi = lo = 0
+    for b in bytes(data):
+        f = b ^ hi
+        hi, lo = lo ^ _times2(f) ^ f, _times2(f)
+    return bytes([hi, lo])
+
+
+def fec_locate(code):
+    """A codeword (data then its parity): None when its syndromes show no error, -1 when one damaged byte cannot
+    explain them, else (i, error): code[i] ^ error is the byte sent."""
+    s0 = s1 = 0
+    for b in bytes(code):
+        s0 ^= b
+        s1 = _times2(s1) ^ b
+    if s0 == 0 and s1 == 0:
+        return None
+    if s0 == 0 or s1 == 0:
+        return -1
+    power = (_LOG[s1] - _LOG[s0]) % 255
+    if power >= len(code):
+        return -1
+    return len(code) - 1 - power, s0
+
+
 def encode(seq, type, payload=b""):
-    """One frame: SYNC LEN SEQ TYPE PAYLOAD CRC (4 bytes, little-endian). ValueError if the payload exceeds 58 bytes."""
+    """One frame: SYNC LEN SEQ TYPE PAYLOAD CRC (4 bytes, little-endian) PARITY (2 bytes). ValueError if the payload
+    exceeds 58 bytes."""
     payload = bytes(payload)
     if len(payload) > MAX_PAYLOAD:
         raise ValueError(f"payload of {len(payload)} bytes exceeds {MAX_PAYLOAD}")
     if not 0 <= seq <= 255 or not 0 <= type <= 255:
         raise ValueError("seq and type are bytes")
     body = bytes([len(payload), seq, type]) + payload
-    return bytes([SYNC]) + body + crc32(body).to_bytes(4, "little")
+    body += crc32(body).to_bytes(4, "little")
+    return bytes([SYNC]) + body + fec_parity(body)
+
+
+def implied_len(msg_type):
+    """The payload length every frame of this TYPE has (requests and responses have fixed lengths), or -1: unknown
+    types, and 0x7F (a NAK has 1 byte, a probe none)."""
+    from . import messages  # the message table imports nothing from here; framing needs only these lengths
+    if msg_type & 0x80:
+        return messages.response_len(msg_type & 0x7F)
+    return messages.request_len(msg_type)
 
 
 class Decoder:
     """Streaming decoder. feed() returns the Frames and Rejects completed by the bytes, in stream order.
-    After a rejection it resumes hunting at the byte after the rejected SYNC (see PROTOCOL.md)."""
+    A frame whose CRC holds is delivered at its last CRC byte (its parity is skipped when it comes); one whose CRC
+    fails is read again with its parity (one byte corrected), then with the length its TYPE implies in place of
+    LEN. After a rejection it resumes hunting at the byte after the rejected SYNC (see PROTOCOL.md)."""
 
     def __init__(self):
         self.buf = bytearray()
+        self.tried = 0  # the candidate's readings ending at or before this many bytes have been tried
+        self.skip = 0   # parity bytes still to come of a frame delivered before them
 
     def pending(self):
-        """True while a frame has started but not completed."""
-        return bool(self.buf)
+        """True while a frame has started but not completed, or its parity bytes are still to come."""
+        return bool(self.buf) or self.skip > 0
 
     def reset(self):
         """Inter-byte timeout: drops the partial frame's SYNC and rescans the bytes after it. Returns (pending,
         items): whether a frame was pending, and the Frames/Rejects the rescan completed (see PROTOCOL.md)."""
-        pending = bool(self.buf)
+        pending = self.pending()
+        self.skip = 0  # parity that never came: a peer of version 4 sends none
         out = []
         while self.buf:
             self._shift(1)
@@ -53,30 +109,77 @@ class Decoder:
     def _shift(self, start):
         i = self.buf.find(SYNC, start)
         del self.buf[:len(self.buf) if i < 0 else i]
+        self.tried = 0
 
     def feed(self, data):
         out = []
         for b in bytes(data):
+            if self.skip:
+                self.skip -= 1
+                continue
             if not self.buf and b != SYNC:
                 continue
             self.buf.append(b)
             self._settle(out)
         return out
 
+    def _crc_holds(self, length):
+        buf = self.buf
+        return crc32(buf[1:4 + length]) == int.from_bytes(buf[4 + length:8 + length], "little")
+
+    def _corrected_holds(self, length):
+        found = fec_locate(self.buf[1:length + OVERHEAD])
+        if found is None or found == -1 or found[0] == 0:  # at 0: LEN, which this reading took as read
+            return False
+        at, error = found
+        self.buf[1 + at] ^= error
+        if self._crc_holds(length):
+            return True
+        self.buf[1 + at] ^= error
+        return False
+
+    def _relength_holds(self, length):
+        was, self.buf[1] = self.buf[1], length
+        if fec_locate(self.buf[1:length + OVERHEAD]) is None and self._crc_holds(length):
+            return True
+        self.buf[1] = was
+        return False
+
+    def _deliver(self, length, out):
+        buf = self.buf
+        out.append(Frame(buf[2], buf[3], bytes(buf[4:4 + length]), int.from_bytes(buf[4 + length:8 + length], "little")))
+        if len(buf) >= length + OVERHEAD:
+            self._shift(length + OVERHEAD)  # bytes after it (after a rescan) stay
+        else:
+            self.skip = length + OVERHEAD - len(buf)
+            del buf[:]
+            self.tried = 0
+
     def _settle(self, out):
         buf = self.buf
-        while len(buf) >= 3:
+        while len(buf) >= 4:
             length, seq = buf[1], buf[2]
-            if length > MAX_PAYLOAD:
-                self._shift(1)
-                out.append(Reject(BAD_LENGTH, seq))
+            alt = implied_len(buf[3])
+            if alt == length:
+                alt = -1
+            last = length + OVERHEAD if length <= MAX_PAYLOAD else 0
+            if alt >= 0:
+                last = max(last, alt + OVERHEAD)
+            delivered = False
+            for end in range(self.tried + 1, min(len(buf), last) + 1):
+                self.tried = end
+                if length <= MAX_PAYLOAD and end == length + OVERHEAD - FEC_BYTES and self._crc_holds(length):
+                    delivered = True
+                elif length <= MAX_PAYLOAD and end == length + OVERHEAD and self._corrected_holds(length):
+                    delivered = True
+                elif alt >= 0 and end == alt + OVERHEAD and self._relength_holds(alt):
+                    delivered, length = True, alt
+                if delivered:
+                    self._deliver(length, out)
+                    break
+            if delivered:
                 continue
-            if len(buf) < length + OVERHEAD:
+            if len(buf) < last:
                 return
-            rx = int.from_bytes(buf[4 + length:OVERHEAD + length], "little")
-            if crc32(buf[1:4 + length]) == rx:
-                out.append(Frame(seq, buf[3], bytes(buf[4:4 + length]), rx))
-                self._shift(length + OVERHEAD)
-            else:
-                self._shift(1)
-                out.append(Reject(BAD_CRC, seq))
+            self._shift(1)
+            out.append(Reject(BAD_CRC if length <= MAX_PAYLOAD else BAD_LENGTH, seq))
