@@ -9,7 +9,7 @@
 extern "C" {
 #endif
 
-#define RBX1_MESSAGES_VERSION 4
+#define RBX1_MESSAGES_VERSION 5
 
 /* Message types (a response is the request type | 0x80). */
 enum rbx1_msg_type {

@@ -3,7 +3,7 @@ protocol/messages.json: do not edit; change messages.json and run protocol/gen.p
 import enum
 import struct
 
-PROTO_VERSION = 4
+PROTO_VERSION = 5
 GLOBAL_JOINT = 0xFF
 
 
