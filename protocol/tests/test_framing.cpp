@@ -31,9 +31,9 @@ struct Recorder {
 };
 
 // Feeds wire in chunks; then, when after_timeout is given, the inter-byte timeout (rbx1_decoder_reset) and the
-// events its rescan produced.
+// events its rescan produced; then, when a vector's "then" is given, its wire (after the timeout) and its events.
 json decode_chunked(const std::vector<uint8_t>& wire, const std::vector<size_t>& chunks, bool* pending,
-                    json* after_timeout = nullptr) {
+                    json* after_timeout = nullptr, const json* then = nullptr, json* then_events = nullptr) {
   Recorder r;
   size_t pos = 0, k = 0;
   while (pos < wire.size()) {
@@ -48,6 +48,12 @@ json decode_chunked(const std::vector<uint8_t>& wire, const std::vector<size_t>&
     EXPECT_EQ(rbx1_decoder_reset(&r.dec), *pending ? 1 : 0);
     EXPECT_FALSE(rbx1_decoder_pending(&r.dec));
     *after_timeout = r.events;
+  }
+  if (after_timeout && then) {
+    r.events = json::array();
+    auto more = unhex((*then)["wire"]);
+    rbx1_decoder_feed(&r.dec, more.data(), more.size());
+    *then_events = r.events;
   }
   return events;
 }
@@ -71,16 +77,17 @@ TEST(Crc, Vectors) {
   }
 }
 
-TEST(Budget, OverheadIsEightBytesAndMoveFrameIs34) {
-  EXPECT_EQ(RBX1_FRAME_OVERHEAD, 8);
-  EXPECT_EQ(RBX1_MAX_FRAME, 66);
+TEST(Budget, OverheadIsTenBytesAndMoveFrameIs36) {
+  EXPECT_EQ(RBX1_FRAME_OVERHEAD, 10);
+  EXPECT_EQ(RBX1_FEC_BYTES, 2);
+  EXPECT_EQ(RBX1_MAX_FRAME, 68);
   uint8_t out[RBX1_MAX_FRAME];
-  EXPECT_EQ(rbx1_frame_encode(out, sizeof out, 0, RBX1_MSG_STATUS, nullptr, 0), 8u);
+  EXPECT_EQ(rbx1_frame_encode(out, sizeof out, 0, RBX1_MSG_STATUS, nullptr, 0), 10u);
   rbx1_move_req m = {{1, 2, 3, 4, 5, 6}, 100};
   uint8_t payload[RBX1_MAX_PAYLOAD];
   uint8_t len = rbx1_move_req_pack(&m, payload);
   EXPECT_EQ(len, 26);
-  EXPECT_EQ(rbx1_frame_encode(out, sizeof out, 0, RBX1_MSG_MOVE, payload, len), 34u);
+  EXPECT_EQ(rbx1_frame_encode(out, sizeof out, 0, RBX1_MSG_MOVE, payload, len), 36u);
 }
 
 TEST(Encode, RejectsOversizeAndSmallBuffers) {
@@ -88,8 +95,8 @@ TEST(Encode, RejectsOversizeAndSmallBuffers) {
   uint8_t out[RBX1_MAX_FRAME + 1];
   EXPECT_EQ(rbx1_frame_encode(out, sizeof out, 1, 2, payload, RBX1_MAX_PAYLOAD + 1), 0u);
   EXPECT_EQ(rbx1_frame_encode(out, RBX1_MAX_FRAME, 1, 2, payload, RBX1_MAX_PAYLOAD), size_t(RBX1_MAX_FRAME));
-  EXPECT_EQ(rbx1_frame_encode(out, 12, 1, 2, payload, 5), 0u);
-  EXPECT_EQ(rbx1_frame_encode(out, 13, 1, 2, payload, 5), 13u);
+  EXPECT_EQ(rbx1_frame_encode(out, 14, 1, 2, payload, 5), 0u);
+  EXPECT_EQ(rbx1_frame_encode(out, 15, 1, 2, payload, 5), 15u);
 }
 
 TEST(Encode, MessageVectorsWireBytes) {
@@ -113,10 +120,14 @@ TEST(Decoder, StreamVectorsInAnyChunking) {
     for (const auto& ch : chunkings) {
       bool pending = false;
       json timeout;
-      json got = decode_chunked(wire, ch, &pending, &timeout);
+      json then;
+      json got = decode_chunked(wire, ch, &pending, &timeout, v.contains("then") ? &v["then"] : nullptr, &then);
       EXPECT_EQ(got, v["events"]) << v["name"] << " chunk " << ch[0];
       EXPECT_EQ(pending, v["pending"].get<bool>()) << v["name"];
       EXPECT_EQ(timeout, v["after_timeout"]) << v["name"] << " chunk " << ch[0];
+      if (v.contains("then")) {
+        EXPECT_EQ(then, v["then"]["events"]) << v["name"] << " chunk " << ch[0];
+      }
     }
   }
 }
@@ -133,8 +144,8 @@ TEST(Decoder, RejectsTheCrc16Collision) {
     ASSERT_EQ(wire.size(), got.size() + RBX1_FRAME_OVERHEAD - 3);
     EXPECT_TRUE(std::equal(got.begin(), got.end(), wire.begin() + 1));
     EXPECT_NE(sent, got);
-    uint32_t rx = wire[wire.size() - 4] | (wire[wire.size() - 3] << 8) | (wire[wire.size() - 2] << 16) |
-                  (uint32_t(wire[wire.size() - 1]) << 24);
+    const uint8_t* c = wire.data() + wire.size() - 6;  // CRC 0..3, then the 2 parity bytes
+    uint32_t rx = c[0] | (c[1] << 8) | (c[2] << 16) | (uint32_t(c[3]) << 24);
     EXPECT_EQ(rbx1_crc32(sent.data(), sent.size()), rx);  // the CRC the sender wrote
     EXPECT_NE(rbx1_crc32(got.data(), got.size()), rx);
     bool pending = true;
@@ -208,4 +219,242 @@ TEST(Decoder, RandomFramesInRandomNoiseAreAllFound) {
     EXPECT_EQ(got[i]["frame"]["payload"], hex(sent[i].data() + 4, sent[i][1]));
   }
   EXPECT_FALSE(pending);
+}
+
+// ---- Version 5: Reed-Solomon parity (rbx1_fec_parity, rbx1_fec_locate) and the decoder's corrected readings ----
+
+namespace {
+
+// a * b in GF(2^8) mod 0x11D, bit by bit: an evaluation independent of the library's shift-and-XOR.
+uint8_t gf_mul(uint8_t a, uint8_t b) {
+  uint8_t r = 0;
+  while (b) {
+    if (b & 1) r ^= a;
+    a = static_cast<uint8_t>((a << 1) ^ ((a & 0x80) ? 0x1D : 0));
+    b >>= 1;
+  }
+  return r;
+}
+
+// The codeword (first byte the highest power) evaluated at x.
+uint8_t evaluate(const std::vector<uint8_t>& code, uint8_t x) {
+  uint8_t r = 0;
+  for (uint8_t c : code) r = static_cast<uint8_t>(gf_mul(r, x) ^ c);
+  return r;
+}
+
+std::vector<uint8_t> with_parity(std::vector<uint8_t> data) {
+  uint8_t par[RBX1_FEC_BYTES];
+  rbx1_fec_parity(data.data(), data.size(), par);
+  data.insert(data.end(), par, par + RBX1_FEC_BYTES);
+  return data;
+}
+
+std::vector<uint8_t> encode(uint8_t seq, uint8_t type, const std::vector<uint8_t>& payload) {
+  uint8_t out[RBX1_MAX_FRAME];
+  size_t n = rbx1_frame_encode(out, sizeof out, seq, type, payload.data(), static_cast<uint8_t>(payload.size()));
+  return std::vector<uint8_t>(out, out + n);
+}
+
+std::vector<uint8_t> move_frame() {
+  rbx1_move_req m = {{1000, -2000, 3000, -4000, 5000, 0}, 1500};
+  uint8_t payload[RBX1_MAX_PAYLOAD];
+  uint8_t len = rbx1_move_req_pack(&m, payload);
+  return encode(7, RBX1_MSG_MOVE, std::vector<uint8_t>(payload, payload + len));
+}
+
+// The frame event an intact wire frame decodes to.
+json frame_event(const std::vector<uint8_t>& w) {
+  uint8_t n = w[1];
+  const uint8_t* c = w.data() + 4 + n;
+  uint32_t crc = c[0] | (c[1] << 8) | (c[2] << 16) | (uint32_t(c[3]) << 24);
+  return {{"frame", {{"seq", w[2]}, {"type", w[3]}, {"payload", hex(w.data() + 4, n)}, {"crc", crc}}}};
+}
+
+}  // namespace
+
+TEST(Fec, ParityVectors) {
+  size_t n = 0;
+  for (const auto& v : load_vectors("fec.json")) {
+    if (!v.contains("parity")) continue;
+    auto data = unhex(v["data"]);
+    uint8_t par[RBX1_FEC_BYTES];
+    rbx1_fec_parity(data.data(), data.size(), par);
+    EXPECT_EQ(hex(par, 2), v["parity"].get<std::string>()) << v["name"];
+    n++;
+  }
+  EXPECT_GE(n, 5u);
+}
+
+TEST(Fec, LocateVectors) {
+  size_t n = 0, located = 0;
+  for (const auto& v : load_vectors("fec.json")) {
+    if (!v.contains("code")) continue;
+    auto code = unhex(v["code"]);
+    uint8_t error = 0;
+    int at = rbx1_fec_locate(code.data(), code.size(), &error);
+    EXPECT_EQ(at, v["at"].get<int>()) << v["name"];
+    if (at >= 0) {
+      EXPECT_EQ(error, v["error"].get<int>()) << v["name"];
+      located++;
+    }
+    n++;
+  }
+  EXPECT_GE(n, 10u);
+  EXPECT_GE(located, 5u);
+}
+
+// The parity makes the codeword vanish at x = 1 and x = 2 (divisible by (x + 1)(x + 2)), for every length.
+TEST(Fec, ParityMakesTheCodewordDivisibleByTheGenerator) {
+  std::mt19937 rng(5);
+  for (size_t n = 0; n <= RBX1_MAX_FRAME - 3; n++) {
+    std::vector<uint8_t> data(n);
+    for (auto& b : data) b = static_cast<uint8_t>(rng());
+    auto code = with_parity(data);
+    EXPECT_EQ(evaluate(code, 1), 0) << n;
+    EXPECT_EQ(evaluate(code, 2), 0) << n;
+    uint8_t error = 0;
+    EXPECT_EQ(rbx1_fec_locate(code.data(), code.size(), &error), -1) << n;
+  }
+}
+
+// Every single-byte error, at every position of a 68-byte codeword (66 data bytes and the parity) and with every
+// one of the 255 error values, is located with its value.
+TEST(Fec, EverySingleByteErrorOfA68ByteCodewordIsLocated) {
+  std::mt19937 rng(68);
+  std::vector<uint8_t> data(66);
+  for (auto& b : data) b = static_cast<uint8_t>(rng());
+  const auto code = with_parity(data);
+  ASSERT_EQ(code.size(), 68u);
+  int wrong = 0;
+  for (size_t i = 0; i < code.size(); i++) {
+    for (int e = 1; e < 256; e++) {
+      auto hit = code;
+      hit[i] ^= static_cast<uint8_t>(e);
+      uint8_t error = 0;
+      int at = rbx1_fec_locate(hit.data(), hit.size(), &error);
+      if (at != static_cast<int>(i) || error != e) wrong++;
+      if (at >= 0) hit[at] ^= error;
+      if (hit != code) wrong++;
+    }
+  }
+  EXPECT_EQ(wrong, 0);
+}
+
+// Two damaged bytes are never "located" at one of them with the value that would undo both: the parity alone cannot
+// tell them from one damaged byte elsewhere, which is why the CRC decides.
+TEST(Fec, TwoErrorsAreNeverTakenForTheSentCodeword) {
+  std::mt19937 rng(2);
+  std::vector<uint8_t> data(33);
+  for (auto& b : data) b = static_cast<uint8_t>(rng());
+  const auto code = with_parity(data);
+  int located = 0, refused = 0;
+  for (int k = 0; k < 20000; k++) {
+    size_t i = rng() % code.size(), j = rng() % code.size();
+    if (i == j) continue;
+    auto hit = code;
+    hit[i] ^= static_cast<uint8_t>(1 + rng() % 255);
+    hit[j] ^= static_cast<uint8_t>(1 + rng() % 255);
+    uint8_t error = 0;
+    int at = rbx1_fec_locate(hit.data(), hit.size(), &error);
+    ASSERT_NE(at, -1);  // two errors always show in the syndromes (distance 3)
+    if (at >= 0) {
+      hit[at] ^= error;
+      EXPECT_NE(hit, code);
+      located++;
+    } else {
+      refused++;
+    }
+  }
+  EXPECT_GT(located, 0);  // some are "corrected" into another codeword...
+  EXPECT_GT(refused, located);  // ...most are refused outright
+}
+
+// The C results agree with the vectors the Python module wrote (fec.json, the wire bytes of messages.json).
+TEST(Fec, FrameParityIsTheParityOfLenToCrc) {
+  for (const auto& v : load_vectors("messages.json")) {
+    auto wire = unhex(v["wire"]);
+    std::vector<uint8_t> body(wire.begin() + 1, wire.end() - 2);
+    EXPECT_EQ(with_parity(body), std::vector<uint8_t>(wire.begin() + 1, wire.end())) << v["name"];
+  }
+}
+
+// Every byte after SYNC of a 36-byte MOVE frame, damaged with every error value, is delivered intact (corrected, its
+// LEN repaired from TYPE, or a damaged parity byte skipped), with nothing left pending.
+TEST(Decoder, EverySingleDamagedByteOfAMoveFrameIsDeliveredIntact) {
+  const auto move = move_frame();
+  ASSERT_EQ(move.size(), 36u);
+  const json want = json::array({frame_event(move)});
+  int wrong = 0;
+  for (size_t i = 1; i < move.size(); i++) {
+    for (int e = 1; e < 256; e++) {
+      auto hit = move;
+      hit[i] ^= static_cast<uint8_t>(e);
+      bool pending = true;
+      json got = decode_chunked(hit, {i % 2 ? size_t(1) : size_t(64)}, &pending);
+      if (got != want || pending) {
+        if (wrong++ < 5) ADD_FAILURE() << "byte " << i << " error " << e << ": " << got.dump();
+      }
+    }
+  }
+  EXPECT_EQ(wrong, 0);
+}
+
+// Random frames with two damaged bytes after SYNC: never delivered with content other than what was sent (the CRC
+// refuses what the parity "corrects" wrongly); most are rejected.
+TEST(Decoder, RandomTwoByteDamageNeverDeliversWrongContent) {
+  std::mt19937 rng(22);
+  int intact = 0, rejected = 0;
+  for (int k = 0; k < 20000; k++) {
+    uint8_t type = static_cast<uint8_t>(1 + rng() % 14);
+    if (rng() % 2) type = RBX1_RESPONSE(type);
+    int len = (type & 0x80) ? rbx1_response_len(type & 0x7F) : rbx1_request_len(type);
+    ASSERT_GE(len, 0);
+    std::vector<uint8_t> payload(static_cast<size_t>(len));
+    for (auto& b : payload) b = static_cast<uint8_t>(rng());
+    const auto sent = encode(static_cast<uint8_t>(rng()), type, payload);
+    auto hit = sent;
+    size_t i = 1 + rng() % (sent.size() - 1), j = 1 + rng() % (sent.size() - 1);
+    if (i == j) continue;
+    hit[i] ^= static_cast<uint8_t>(1 + rng() % 255);
+    hit[j] ^= static_cast<uint8_t>(1 + rng() % 255);
+    bool pending = false;
+    json timeout;
+    json got = decode_chunked(hit, {1}, &pending, &timeout);
+    got.insert(got.end(), timeout.begin(), timeout.end());
+    bool delivered = false;
+    for (const auto& ev : got) {
+      if (!ev.contains("frame")) continue;
+      ASSERT_EQ(ev, frame_event(sent)) << "bytes " << i << ", " << j << " of " << hex(sent.data(), sent.size());
+      delivered = true;
+    }
+    (delivered ? intact : rejected)++;
+  }
+  EXPECT_GT(rejected, 15000);  // two damaged bytes after LEN..CRC are beyond the parity
+  EXPECT_GT(intact, 0);        // both in the parity, or one in it: the CRC holds as received
+}
+
+// Each reading decides when its last byte arrives: as sent at the last CRC byte, corrected at the last parity byte,
+// with TYPE's length (a damaged LEN) at that length's last parity byte.
+TEST(Decoder, EachReadingDeliversAtItsLastByte) {
+  const auto move = move_frame();  // LEN 26: CRC ends at byte 34, parity at 36
+  struct Case {
+    size_t at;
+    uint8_t error;
+    size_t delivered_after;
+  } cases[] = {{0, 0, 34}, {10, 0x40, 36}, {33, 0x01, 36}, {34, 0x01, 34}, {1, 26 ^ 12, 36}, {1, 26 ^ 40, 36}};
+  for (const auto& c : cases) {
+    auto hit = move;
+    hit[c.at] ^= c.error;
+    Recorder r;
+    size_t when = 0;
+    for (size_t k = 0; k < hit.size(); k++) {
+      rbx1_decoder_feed(&r.dec, &hit[k], 1);
+      if (!r.events.empty() && when == 0) when = k + 1;
+    }
+    EXPECT_EQ(when, c.delivered_after) << "byte " << c.at << " error " << int(c.error);
+    ASSERT_EQ(r.events.size(), 1u);
+    EXPECT_EQ(r.events[0], frame_event(move));
+    EXPECT_FALSE(rbx1_decoder_pending(&r.dec));
+  }
 }

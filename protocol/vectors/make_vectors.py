@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""make_vectors.py - writes the shared test vectors (messages.json, streams.json, crc.json) in this folder.
+"""make_vectors.py - writes the shared test vectors (messages, streams, bad_payloads, fec, crc, window .json) here.
 
 Each stream's expected events are written down by construction here (not read back from a decoder); the script
 then checks that the Python decoder agrees before writing, and both the C and the Python tests check every vector.
@@ -64,14 +64,14 @@ def message_vectors():
             wire = frame.encode(seq, ftype, payload)
             out.append({"name": f"{t.name} {kind}", "kind": kind, "msg": int(t), "type": ftype, "seq": seq,
                         "fields": jsonable(fields), "payload": payload.hex(), "wire": wire.hex(),
-                        "crc": frame.crc32(wire[1:-4])})
+                        "crc": frame.crc32(wire[1:-6])})
         seq = (seq + 37) & 0xFF  # vary SEQ, and pass through 0xA5-ish values
     for seq, reason in ((5, Status.BAD_CRC), (0xA5, Status.BAD_LENGTH), (255, Status.UNKNOWN_TYPE)):
         payload = messages.pack_nak(reason)
         wire = frame.encode(seq, MsgType.NAK, payload)
         out.append({"name": f"NAK {reason.name}", "kind": "nak", "msg": int(MsgType.NAK), "type": int(MsgType.NAK),
                     "seq": seq, "fields": {"reason": int(reason)}, "payload": payload.hex(), "wire": wire.hex(),
-                    "crc": frame.crc32(wire[1:-4])})
+                    "crc": frame.crc32(wire[1:-6])})
     return out
 
 
@@ -91,92 +91,129 @@ def crc16_collision():
     for i, x in enumerate(b"\x01\x10\x21"):
         got[4 + i] ^= x  # the first target's low three bytes
     got = bytes(got)
-    body = slice(1, len(sent) - 4)
+    body = slice(1, len(sent) - 6)
     assert binascii.crc_hqx(got[body], 0xFFFF) == binascii.crc_hqx(sent[body], 0xFFFF)  # CRC-16 blind to it
-    assert frame.crc32(got[body]) != frame.crc32(sent[body]) and got[-4:] == sent[-4:]
-    return sent, got, messages.unpack_request(MsgType.MOVE, got[4:-4])["target"][0]
+    assert frame.crc32(got[body]) != frame.crc32(sent[body]) and got[-6:] == sent[-6:]
+    return sent, got, messages.unpack_request(MsgType.MOVE, got[4:-6])["target"][0]
 
 
 def ev_reject(status, seq):
     return {"reject": {"status": status.name, "seq": seq}}
 
 
+def damage(b, errors):
+    """b with each {index: error} XORed in."""
+    c = bytearray(b)
+    for i, x in errors.items():
+        c[i] ^= x
+    return bytes(c)
+
+
+def two_errors_the_parity_miscorrects(b):
+    """The first two damaged bytes (in SEQ, payload or CRC: TYPE kept, so no other length is tried) whose syndromes
+    point at one byte after LEN: the corrected reading "corrects" it, and the CRC still refuses. Returns (errors,
+    located index in the frame)."""
+    n = len(b)
+    for i in [2] + list(range(4, n - 2)):
+        for j in range(max(i + 1, 4), n - 2):
+            for x in range(1, 256):
+                got = damage(b, {i: x, j: 0x81})
+                found = frame.fec_locate(got[1:])
+                if isinstance(found, tuple) and found[0] > 0 and 0xA5 not in got[1:]:
+                    fixed = damage(got, {1 + found[0]: found[1]})
+                    assert fixed != b and frame.crc32(fixed[1:-6]) != int.from_bytes(fixed[-6:-2], "little")
+                    return {i: x, j: 0x81}, 1 + found[0]
+    raise AssertionError("no miscorrected pair")
+
+
 def stream_vectors():
     move = frame.encode(7, MsgType.MOVE, messages.pack_request(MsgType.MOVE, target=[1, 2, 3, 4, 5, 6], duration_ms=0))
+    short = frame.encode(7, MsgType.MOVE | 0x80, messages.pack_response(MsgType.MOVE, status=0, queue_free=14))
     status = frame.encode(8, MsgType.STATUS)
     hello_resp = frame.encode(9, MsgType.HELLO | 0x80, messages.pack_response(MsgType.HELLO, **SAMPLES[MsgType.HELLO][1]))
     nak = frame.encode(3, MsgType.NAK, messages.pack_nak(Status.BAD_CRC))
     sync_seq = frame.encode(0xA5, MsgType.SET_POSITION, messages.pack_request(
         MsgType.SET_POSITION, position=[-0x5A5A5A5B, 0xA5, 0xA5A5, 0xA5A5A5, 0, 0]))
     assert sync_seq.count(0xA5) >= 8
-    # A frame whose CRC itself contains 0xA5 (search SEQ for it).
-    crc_a5 = next(f for f in (frame.encode(s, t) for t in MsgType for s in range(256)) if 0xA5 in f[-4:])
+    # Frames whose CRC, and whose parity, contain 0xA5 (search SEQ for them).
+    crc_a5 = next(f for f in (frame.encode(s, t) for t in MsgType for s in range(256)) if 0xA5 in f[-6:-2])
+    par_a5 = next(f for f in (frame.encode(s, MsgType.STATUS) for s in range(256)) if 0xA5 in f[-2:])
     maxf = frame.encode(1, 0x55, bytes(range(58)))  # longest payload; unknown TYPE is the firmware's business
     empty_unknown = frame.encode(2, 0x00, b"")
-
-    def corrupt(b, i, x=0x01):
-        c = bytearray(b)
-        c[i] ^= x
-        return bytes(c)
-
-    bad_crc = corrupt(move, len(move) - 1)            # last CRC byte flipped
-    bad_payload = corrupt(move, 10, 0x80)              # a payload bit flipped
-    assert 0xA5 not in move[1:]
+    assert 0xA5 not in move[1:] and 0xA5 not in short[1:] and 0xA5 not in status[1:]
+    # Outer frame with two damaged bytes (beyond the parity) whose payload carries a whole valid frame.
     inner = status
-    # Outer frame with a bad CRC whose payload carries a whole valid frame.
     outer_ok = frame.encode(0x21, MsgType.GRIPPER, b"\x00" * 3 + inner + b"\x11" * 3)
-    outer_bad = corrupt(outer_ok, len(outer_ok) - 2)
-    # STATUS request whose LEN was hit: LEN 10 instead of 0, so the candidate swallows 10 bytes of the next frame.
-    status_len_hit = bytes([0xA5, 10]) + status[2:]
+    outer_bad = damage(outer_ok, {len(outer_ok) - 4: 0x01, 4: 0x40})
+    # A NAK (TYPE 0x7F: no fixed length) whose LEN was hit: LEN 11 instead of 1, so the candidate swallows the next
+    # frame, and no reading with TYPE's length exists.
+    nak_len_hit = damage(nak, {1: 0x0A})
 
     S = []
 
-    def add(name, description, wire, events, pending=False, after_timeout=()):
-        S.append({"name": name, "description": description, "wire": wire.hex(), "events": events, "pending": pending,
-                  "after_timeout": list(after_timeout)})
+    def add(name, description, wire, events, pending=False, after_timeout=(), then=None):
+        v = {"name": name, "description": description, "wire": wire.hex(), "events": events, "pending": pending,
+             "after_timeout": list(after_timeout)}
+        if then is not None:  # (wire, events): bytes fed after the timeout, and their events
+            v["then"] = {"wire": then[0].hex(), "events": then[1]}
+        S.append(v)
 
-    add("single_move", "one MOVE request (34 bytes on the wire)", move, [ev_frame(move)])
-    add("empty_payload", "STATUS request: LEN 0, 8 bytes", status, [ev_frame(status)])
-    add("max_payload", "58-byte payload, 66-byte frame", maxf, [ev_frame(maxf)])
+    add("single_move", "one MOVE request (36 bytes on the wire)", move, [ev_frame(move)])
+    add("empty_payload", "STATUS request: LEN 0, 10 bytes", status, [ev_frame(status)])
+    add("max_payload", "58-byte payload, 68-byte frame", maxf, [ev_frame(maxf)])
     add("unknown_type", "a CRC-valid frame of an unknown TYPE is delivered (the firmware NAKs UNKNOWN_TYPE)",
         empty_unknown, [ev_frame(empty_unknown)])
     add("back_to_back", "STATUS, MOVE, HELLO response, NAK with no gap", status + move + hello_resp + nak,
         [ev_frame(status), ev_frame(move), ev_frame(hello_resp), ev_frame(nak)])
     add("sync_in_payload_and_seq", "SEQ 0xA5 and 0xA5 bytes in the payload", sync_seq, [ev_frame(sync_seq)])
     add("sync_in_crc", "a CRC byte equal to SYNC", crc_a5, [ev_frame(crc_a5)])
+    add("skip_sync_in_parity_then_frame", "a STATUS whose parity holds 0xA5, then a MOVE at once: the STATUS is "
+        "delivered at its last CRC byte and its 2 parity bytes are skipped (never hunted as a SYNC), the MOVE follows",
+        par_a5 + move, [ev_frame(par_a5), ev_frame(move)])
     add("garbage_prefix", "garbage without SYNC before a frame", bytes([0x00, 0xFF, 0x13, 0x37, 0x5A, 0x80]) + move,
         [ev_frame(move)])
-    add("garbage_with_sync_bad_length", "garbage A5 3B 07: LEN 59 rejected (BAD_LENGTH, SEQ 7), then a frame",
+    add("garbage_with_sync_bad_length", "garbage A5 3B 07: LEN 59, TYPE read from the MOVE's SYNC (0xA5, no fixed "
+        "length) rejected at once (BAD_LENGTH, SEQ 7), then the frame",
         bytes([0x01, 0xA5, 0x3B, 0x07]) + move, [ev_reject(Status.BAD_LENGTH, 7), ev_frame(move)])
-    add("lone_sync_before_frame", "a stray SYNC: A5 A5 1A reads LEN 0xA5, rejected with SEQ 0x1A, frame found "
-        "by resuming at the byte after the stray SYNC", bytes([0xA5]) + move,
-        [ev_reject(Status.BAD_LENGTH, move[1]), ev_frame(move)])
-    add("bad_length_64", "LEN 64 rejected, the valid frame after it found", bytes([0xA5, 64, 0x33]) + status,
-        [ev_reject(Status.BAD_LENGTH, 0x33), ev_frame(status)])
-    add("bad_length_255", "LEN 255 rejected", bytes([0xA5, 0xFF, 0x00]),
-        [ev_reject(Status.BAD_LENGTH, 0)])
-    add("bad_length_no_seq", "LEN 200 then nothing: undecided until the SEQ byte arrives", bytes([0xA5, 200]), [],
+    add("lone_sync_before_frame", "a stray SYNC: A5 A5 1A 07 reads LEN 0xA5 and TYPE 07 (STOP, fixed length 0): "
+        "rejected once its 10-byte reading with LEN 0 fails (SEQ 0x1A), the frame found by resuming at the byte "
+        "after the stray SYNC", bytes([0xA5]) + move, [ev_reject(Status.BAD_LENGTH, move[1]), ev_frame(move)])
+    add("bad_length_64", "LEN 64 (TYPE 0xA5, no fixed length) rejected, the valid frame after it found",
+        bytes([0xA5, 64, 0x33]) + status, [ev_reject(Status.BAD_LENGTH, 0x33), ev_frame(status)])
+    add("bad_length_255", "LEN 255 with TYPE 0x33 (no fixed length) rejected as soon as TYPE is in",
+        bytes([0xA5, 0xFF, 0x00, 0x33]), [ev_reject(Status.BAD_LENGTH, 0)])
+    add("bad_length_no_type", "LEN 255 and SEQ, then nothing: undecided until TYPE arrives; the timeout drops it "
+        "silently", bytes([0xA5, 0xFF, 0x00]), [], pending=True)
+    add("bad_length_no_seq", "LEN 200 then nothing: undecided until the TYPE byte arrives", bytes([0xA5, 200]), [],
         pending=True)
-    add("bad_crc", "MOVE with its CRC corrupted", bad_crc, [ev_reject(Status.BAD_CRC, 7)])
-    add("bad_crc_then_valid", "corrupt MOVE (payload bit) then a valid STATUS", bad_payload + status,
-        [ev_reject(Status.BAD_CRC, 7), ev_frame(status)])
-    add("valid_hidden_in_corrupt", "a corrupt frame whose payload holds a whole valid frame: rejected, then the "
-        "inner frame found by the rescan", outer_bad, [ev_reject(Status.BAD_CRC, 0x21), ev_frame(inner)])
-    add("corrupt_len_swallows_next", "STATUS with LEN hit (10): its candidate ends inside the next MOVE; rejected, "
-        "the MOVE found by the rescan", status_len_hit + move, [ev_reject(Status.BAD_CRC, 8), ev_frame(move)])
-    add("truncated", "a MOVE cut 2 bytes short: nothing yet, frame pending", move[:-2], [], pending=True)
+    add("bad_crc", "MOVE with two CRC bytes damaged (one more than the parity corrects)",
+        damage(move, {len(move) - 3: 0x01, len(move) - 5: 0x01}), [ev_reject(Status.BAD_CRC, 7)])
+    add("bad_crc_then_valid", "MOVE with two payload bits flipped in two bytes, then a valid STATUS",
+        damage(move, {10: 0x80, 20: 0x02}) + status, [ev_reject(Status.BAD_CRC, 7), ev_frame(status)])
+    add("valid_hidden_in_corrupt", "a frame with two damaged bytes whose payload holds a whole valid frame: "
+        "rejected, then the inner frame found by the rescan", outer_bad, [ev_reject(Status.BAD_CRC, 0x21),
+                                                                            ev_frame(inner)])
+    add("corrupt_len_swallows_next", "a NAK with LEN hit (11 instead of 1; TYPE 0x7F has no fixed length, so LEN "
+        "cannot be repaired): its candidate ends inside the next MOVE; rejected, the MOVE found by the rescan",
+        nak_len_hit + move, [ev_reject(Status.BAD_CRC, 3), ev_frame(move)])
+    add("truncated", "a MOVE cut inside its CRC: nothing yet, frame pending; the timeout drops it", move[:-4], [],
+        pending=True)
     add("crc16_collision", "a MOVE hit by a line error that CRC-16/CCITT-FALSE (protocol version 3) cannot see: "
         "bytes 01 10 21 (the generator x^16+x^12+x^5+1) XORed into the first target, so joint 1's target reads "
-        f"{crc16_collision()[2]} instead of 1 and the CRC-16 over LEN..PAYLOAD is unchanged; the CRC-32 rejects it",
-        crc16_collision()[1], [ev_reject(Status.BAD_CRC, 7)])
+        f"{crc16_collision()[2]} instead of 1 and the CRC-16 over LEN..PAYLOAD is unchanged; three damaged bytes are "
+        "beyond the parity, and the CRC-32 rejects it", crc16_collision()[1], [ev_reject(Status.BAD_CRC, 7)])
     add("truncated_header", "SYNC and LEN only", move[:2], [], pending=True)
     add("truncated_swallows_short_frame", "a MOVE cut after 10 bytes, then a STATUS: the STATUS bytes are taken as "
         "the MOVE's continuation; the 50 ms inter-byte timeout drops the MOVE's SYNC and the rescan finds the STATUS",
         move[:10] + status, [], pending=True, after_timeout=[ev_frame(status)])
-    add("truncated_then_sync_noise", "a MOVE cut after 10 bytes, then a stray SYNC and a truncated STATUS: the "
-        "timeout's rescan rejects the stray SYNC (LEN read as 0xA5) and drops the rest", move[:10] + b"\xa5" + status[:4],
-        [], pending=True, after_timeout=[ev_reject(Status.BAD_LENGTH, status[1])])
-    add("sync_noise", "four stray SYNCs then a frame", bytes([0xA5] * 4) + status,
+    stray = frame.encode(0x33, MsgType.STATUS)
+    assert stray[3] == MsgType.STATUS and frame.implied_len(stray[2]) < 0
+    add("truncated_then_sync_noise", "a MOVE cut after 10 bytes, then a stray SYNC and a truncated STATUS (SEQ "
+        "0x33): the timeout's rescan rejects the stray SYNC (LEN read as 0xA5, TYPE as 0x33: no fixed length) and "
+        "drops the rest", move[:10] + b"\xa5" + stray[:4], [], pending=True,
+        after_timeout=[ev_reject(Status.BAD_LENGTH, stray[1])])
+    add("sync_noise", "four stray SYNCs then a frame: three rejected at their TYPE (0xA5, 0x00: no fixed length), "
+        "the fourth (TYPE 0x08, ESTOP: length 0) once its reading with LEN 0 fails", bytes([0xA5] * 4) + status,
         [ev_reject(Status.BAD_LENGTH, 0xA5), ev_reject(Status.BAD_LENGTH, 0xA5), ev_reject(Status.BAD_LENGTH, 0xA5),
          ev_reject(Status.BAD_LENGTH, status[1]), ev_frame(status)])
     add("garbage_only", "bytes without SYNC: no event, nothing pending", bytes(range(0, 0xA5)), [])
@@ -188,6 +225,38 @@ def stream_vectors():
         doc_move + doc_resp + doc_nak, [ev_frame(doc_move), ev_frame(doc_resp), ev_frame(doc_nak)])
     add("frames_around_garbage", "frame, garbage, frame", status + b"\x00\x01\x02" + nak, [ev_frame(status),
         ev_frame(nak)])
+
+    # Version 5: one damaged byte corrected, in each region of a MOVE (LEN 26) and of a short frame (a MOVE response,
+    # LEN 2), then a damaged LEN repaired from TYPE's length. Every one delivers the frame sent.
+    for tag, b in (("move", move), ("short", short)):
+        n = b[1]
+        other_type = MsgType.STATUS if b[3] == MsgType.MOVE else MsgType.STATUS | 0x80  # a fixed length, another
+        fixed = "corrected by the parity at the last parity byte, the frame delivered as sent"
+        skipped = "the CRC holds, so the frame is delivered at its last CRC byte and the damaged parity skipped"
+        regions = (("seq", 2, 0x5A, "SEQ", fixed),
+                   ("type", 3, b[3] ^ other_type, f"TYPE (read as 0x{other_type:02x})",
+                    f"the reading with 0x{other_type:02x}'s fixed length fails, then " + fixed),
+                   ("payload", 4 + n // 2, 0xFF, "a payload byte", fixed), ("crc", 5 + n, 0x10, "CRC 1", fixed),
+                   ("par0", 8 + n, 0x01, "PAR 0", skipped), ("par1", 9 + n, 0x80, "PAR 1", skipped))
+        for region, i, x, what, how in regions:
+            add(f"fec_{tag}_{region}_corrected", f"{len(b)}-byte frame (LEN {n}) with {what} damaged (XOR 0x{x:02x}): "
+                + how, damage(b, {i: x}), [ev_frame(b)])
+        for how, bad in (("smaller", n // 2 - 1 if n > 2 else 0), ("larger", n + 14), ("above_58", n | 0x80)):
+            add(f"fec_{tag}_len_{how}_repaired", f"{len(b)}-byte frame with LEN {n} damaged to {bad}: the reading with "
+                f"TYPE 0x{b[3]:02x}'s length ({n}) in place of LEN holds (syndromes 0, CRC), the frame delivered",
+                damage(b, {1: n ^ bad}), [ev_frame(b)])
+        errors, at = two_errors_the_parity_miscorrects(b)
+        add(f"fec_{tag}_two_bytes_rejected", f"{len(b)}-byte frame with bytes {sorted(errors)} damaged: the syndromes "
+            f"point at byte {at}, and the frame so \"corrected\" fails its CRC: rejected BAD_CRC",
+            damage(b, errors), [ev_reject(Status.BAD_CRC, b[2] ^ errors.get(2, 0))])
+    add("fec_len_no_fixed_type_above_58", "a NAK (TYPE 0x7F: no fixed length) with LEN damaged above 58: rejected "
+        "BAD_LENGTH at its TYPE, nothing to repair LEN from", damage(nak, {1: 0x40}), [ev_reject(Status.BAD_LENGTH, 3)])
+    add("v4_frame_then_silence", "a version 4 frame (no parity) then silence: delivered at its CRC, the 2 parity "
+        "bytes awaited (pending) until the inter-byte timeout forgets them; a frame after the timeout is read whole",
+        move[:-2], [ev_frame(move)], pending=True, then=(status, [ev_frame(status)]))
+    add("v4_frames_back_to_back", "two version 4 frames with no gap: the first is delivered at its CRC and the next "
+        "frame's SYNC and LEN are skipped as its parity, so the second is not seen (a version 4 peer is heard only "
+        "after silences)", move[:-2] + status[:-2], [ev_frame(move)])
 
     def as_events(items):
         return [{"frame": {"seq": e.seq, "type": e.type, "payload": e.payload.hex(), "crc": e.crc}}
@@ -203,6 +272,8 @@ def stream_vectors():
         if as_events(items) != s["after_timeout"] or pending != s["pending"] or d.pending():
             raise SystemExit(f"make_vectors: {s['name']}: constructed {s['after_timeout']} after the timeout but the "
                              f"decoder gives {as_events(items)}")
+        if "then" in s and as_events(d.feed(bytes.fromhex(s["then"]["wire"]))) != s["then"]["events"]:
+            raise SystemExit(f"make_vectors: {s['name']}: the decoder disagrees with the events after the timeout")
     return S
 
 
@@ -304,7 +375,7 @@ def window_vectors():
          (frame.encode(10, MsgType.ESTOP, b"\x01").hex(), "bypass"), (req(10), "new"), (req(10), "duplicate", 4)])
     add("same_seq_other_bytes", "a used SEQ with other bytes is not a retransmission: refused",
         [(move(30, 1), "new"), (move(30, 2), "old"), (move(30, 1), "duplicate", 0)])
-    crc = lambda wire: int.from_bytes(bytes.fromhex(wire)[-4:], "little")  # noqa: E731
+    crc = lambda wire: int.from_bytes(bytes.fromhex(wire)[-6:-2], "little")  # noqa: E731
     x = next(x for x in range(2, 1 << 20) if (crc(move(31, x)) ^ crc(move(31, 1))) & 0xFFFF == 0)  # high halves differ
     add("crc_high_half_tells", f"two MOVEs with one SEQ whose CRC-32s differ in the high 16 bits alone (targets 1 and "
         f"{x}): the window compares all 32 bits, so the second is a used SEQ with other bytes, not a duplicate",
@@ -338,12 +409,73 @@ def window_vectors():
     return V
 
 
+def gf_mul(a, b):
+    """a * b in GF(2^8) mod 0x11D, bit by bit (independent of frame.py's shift-and-XOR encoder)."""
+    r = 0
+    while b:
+        if b & 1:
+            r ^= a
+        a, b = (a << 1) ^ (0x11D if a & 0x80 else 0), b >> 1
+    return r
+
+
+def evaluate(code, x):
+    """The codeword as a polynomial (first byte the highest power) at x."""
+    r = 0
+    for c in code:
+        r = gf_mul(r, x) ^ c
+    return r
+
+
+def fec_vectors():
+    """Parity of sample data, and what locating finds in sample codewords (at: the damaged byte's index, -1 no error,
+    -2 no single damaged byte explains the syndromes; error: the XOR that restores it). Written by construction and
+    checked against frame.py (the C and Python tests check both)."""
+    move = frame.encode(7, MsgType.MOVE, messages.pack_request(MsgType.MOVE, target=[1, 2, 3, 4, 5, 6], duration_ms=0))
+    maxf = frame.encode(1, 0x55, bytes(range(58)))
+    out = []
+    for name, data in (("empty", b""), ("one zero", b"\x00"), ("check string", b"123456789"), ("ff x 10", b"\xff" * 10),
+                       ("MOVE LEN..CRC", move[1:-2]), ("68-byte frame LEN..CRC", maxf[1:-2])):
+        parity = frame.fec_parity(data)
+        code = data + parity
+        assert evaluate(code, 1) == 0 and evaluate(code, 2) == 0, name  # divisible by (x + 1)(x + 2)
+        out.append({"name": f"parity of {name}", "data": data.hex(), "parity": parity.hex()})
+
+    def locate(name, code, at, error=0):
+        found = frame.fec_locate(code)
+        assert found == (None if at == -1 else -1 if at == -2 else (at, error)), (name, found)
+        out.append({"name": name, "code": code.hex(), "at": at, "error": error})
+
+    def hit(code, errors):
+        c = bytearray(code)
+        for i, x in errors.items():
+            c[i] ^= x
+        return bytes(c)
+
+    mc, fc = move[1:], maxf[1:]  # a 35-byte and a 67-byte codeword
+    locate("MOVE codeword intact", mc, -1)
+    for i, x in ((0, 0x1A ^ 0x0C), (1, 0x01), (17, 0xFF), (32, 0xA5), (33, 0x80), (34, 0x7F)):
+        locate(f"MOVE codeword, byte {i} damaged", hit(mc, {i: x}), i, x)
+    locate("67-byte codeword intact", fc, -1)
+    for i in (0, 33, 65, 66):
+        locate(f"67-byte codeword, byte {i} damaged", hit(fc, {i: 0x5A}), i, 0x5A)
+    locate("MOVE codeword, one error value twice (S1 = 0)", hit(mc, {3: 0x44, 9: 0x44}), -2)
+    far = next(x for x in range(1, 256) if frame.fec_locate(hit(mc, {3: x, 9: 0x81})) == -1
+               and evaluate(hit(mc, {3: x, 9: 0x81}), 1) and evaluate(hit(mc, {3: x, 9: 0x81}), 2))
+    locate("MOVE codeword, two damaged bytes pointing beyond its start", hit(mc, {3: far, 9: 0x81}), -2)
+    x = next(x for x in range(1, 256) if isinstance(frame.fec_locate(hit(mc, {3: x, 9: 0x81})), tuple))
+    at, error = frame.fec_locate(hit(mc, {3: x, 9: 0x81}))
+    assert at not in (3, 9)
+    locate("MOVE codeword, two damaged bytes that read as one elsewhere", hit(mc, {3: x, 9: 0x81}), at, error)
+    return out
+
+
 def crc_vectors():
     sent, got, _ = crc16_collision()  # two bodies with one CRC-16 and two CRC-32s
     return [{"data": b"123456789".hex(), "crc": 0xCBF43926}, {"data": "", "crc": 0},
             {"data": "00", "crc": frame.crc32(b"\x00")}, {"data": "a5" * 10, "crc": frame.crc32(b"\xa5" * 10)},
-            {"data": sent[1:-4].hex(), "crc": frame.crc32(sent[1:-4])},
-            {"data": got[1:-4].hex(), "crc": frame.crc32(got[1:-4])}]
+            {"data": sent[1:-6].hex(), "crc": frame.crc32(sent[1:-6])},
+            {"data": got[1:-6].hex(), "crc": frame.crc32(got[1:-6])}]
 
 
 def main():
@@ -357,6 +489,11 @@ def main():
         "bad_payloads.json": {"description": "CRC-valid frames whose payload length is wrong for their type: "
                               "unpack refuses them (BAD_LENGTH; the firmware answers a request like this with "
                               "status BAD_LENGTH, except ESTOP, which stops the arm whatever its length)", "vectors": bad_payload_vectors()},
+        "fec.json": {"description": "Reed-Solomon parity (GF(2^8), 0x11D, generator (x + 1)(x + 2)): parity "
+                     "vectors give data and its 2 parity bytes; locate vectors give a codeword (data then parity) and "
+                     "what locating finds: at = index of the one damaged byte and error = the XOR that restores it, "
+                     "at -1 = no error, -2 = no single damaged byte explains the syndromes (error 0)",
+                     "vectors": fec_vectors()},
         "crc.json": {"description": "CRC-32/ISO-HDLC of data (hex); the last two have the same CRC-16/CCITT-FALSE "
                      "(vector crc16_collision in streams.json)", "vectors": crc_vectors()},
         "window.json": {"description": "requests fed in order to a receiver's window, with the expected verdict "

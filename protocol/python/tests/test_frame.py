@@ -38,10 +38,10 @@ def test_crc_vectors(v):
 
 
 def test_budget_overhead_and_move_size():
-    assert frame.OVERHEAD == 8
-    assert len(frame.encode(0, 2)) == 8
+    assert frame.OVERHEAD == 10 and frame.FEC_BYTES == 2 and frame.MAX_FRAME == 68
+    assert len(frame.encode(0, 2)) == 10
     move = next(v for v in MESSAGES if v["name"] == "MOVE request")
-    assert len(bytes.fromhex(move["wire"])) == 34
+    assert len(bytes.fromhex(move["wire"])) == 36
 
 
 @pytest.mark.parametrize("v", MESSAGES, ids=lambda v: v["name"])
@@ -50,7 +50,7 @@ def test_encode_message_vectors(v):
 
 
 def test_encode_rejects_oversize():
-    assert len(frame.encode(1, 2, bytes(58))) == 66
+    assert len(frame.encode(1, 2, bytes(58))) == 68
     with pytest.raises(ValueError):
         frame.encode(1, 2, bytes(59))
 
@@ -64,6 +64,8 @@ def test_stream_vectors(v, chunks):
     was_pending, items = d.reset()  # the inter-byte timeout that follows
     assert was_pending == v["pending"] and not d.pending()
     assert as_json(items) == v["after_timeout"]
+    if "then" in v:  # bytes that arrive after the timeout
+        assert as_json(d.feed(bytes.fromhex(v["then"]["wire"]))) == v["then"]["events"]
 
 
 def test_timeout_rescan_finds_the_swallowed_frame():
@@ -99,11 +101,13 @@ def test_protocol_md_example_is_the_vector():
         doc = f.read()
     v = next(v for v in STREAMS if v["name"] == "protocol_md_example")
     wire = bytes.fromhex(v["wire"])
-    move, resp, nak = wire[:34], wire[34:44], wire[44:]
+    move, resp, nak = wire[:36], wire[36:48], wire[48:]
+    assert len(nak) == 11
     for part in (move, resp, nak):
         assert part.hex(" ") in doc
     for part in (move, resp):
-        assert "CRC 0x%08x (sent %s)" % (frame.crc32(part[1:-4]), part[-4:].hex(" ")) in doc
+        assert "CRC 0x%08x (sent %s)" % (frame.crc32(part[1:-6]), part[-6:-2].hex(" ")) in doc
+        assert "parity " + part[-2:].hex(" ") in doc.replace("\n", " ")
     assert [type(e) for e in frame.Decoder().feed(wire)] == [frame.Frame] * 3
 
 
@@ -114,7 +118,138 @@ def test_crc16_collision_is_rejected():
     got = bytes.fromhex(v["wire"])
     crcs = load_vectors("crc.json")[-2:]  # the bodies sent and received
     a, b = (bytes.fromhex(c["data"]) for c in crcs)
-    assert b == got[1:-4] and a != b and len(a) == len(b)
+    assert b == got[1:-6] and a != b and len(a) == len(b)
     assert binascii.crc_hqx(a, 0xFFFF) == binascii.crc_hqx(b, 0xFFFF)
-    assert frame.crc32(a) != frame.crc32(b) and frame.crc32(a) == int.from_bytes(got[-4:], "little")
+    assert frame.crc32(a) != frame.crc32(b) and frame.crc32(a) == int.from_bytes(got[-6:-2], "little")
     assert as_json(frame.Decoder().feed(got)) == [{"reject": {"status": "BAD_CRC", "seq": 7}}]
+
+
+# ---- Version 5: Reed-Solomon parity (fec_parity, fec_locate) and the decoder's corrected readings ----
+
+FEC = load_vectors("fec.json")
+
+
+def gf_mul(a, b):
+    """a * b in GF(2^8) mod 0x11D, bit by bit: an evaluation independent of frame.py's shift-and-XOR."""
+    r = 0
+    while b:
+        if b & 1:
+            r ^= a
+        a, b = (a << 1) ^ (0x11D if a & 0x80 else 0), b >> 1
+    return r
+
+
+def evaluate(code, x):
+    r = 0
+    for c in code:
+        r = gf_mul(r, x) ^ c
+    return r
+
+
+def move_frame():
+    from rbx1proto import messages
+    return frame.encode(7, messages.MsgType.MOVE, messages.pack_request(
+        messages.MsgType.MOVE, target=[1000, -2000, 3000, -4000, 5000, 0], duration_ms=1500))
+
+
+def event(b):
+    """The Frame an intact wire frame decodes to."""
+    n = b[1]
+    return frame.Frame(b[2], b[3], bytes(b[4:4 + n]), int.from_bytes(b[4 + n:8 + n], "little"))
+
+
+@pytest.mark.parametrize("v", [v for v in FEC if "parity" in v], ids=lambda v: v["name"])
+def test_fec_parity_vectors(v):
+    assert frame.fec_parity(bytes.fromhex(v["data"])).hex() == v["parity"]
+
+
+@pytest.mark.parametrize("v", [v for v in FEC if "code" in v], ids=lambda v: v["name"])
+def test_fec_locate_vectors(v):
+    want = None if v["at"] == -1 else -1 if v["at"] == -2 else (v["at"], v["error"])
+    assert frame.fec_locate(bytes.fromhex(v["code"])) == want
+
+
+def test_fec_vectors_cover_each_outcome():
+    ats = [v["at"] for v in FEC if "code" in v]
+    assert -1 in ats and -2 in ats and sum(a >= 0 for a in ats) >= 5
+
+
+def test_fec_parity_makes_the_codeword_divisible_by_the_generator():
+    rng = random.Random(5)
+    for n in range(frame.MAX_FRAME - 2):
+        code = bytes(rng.randrange(256) for _ in range(n))
+        code += frame.fec_parity(code)
+        assert evaluate(code, 1) == 0 and evaluate(code, 2) == 0, n
+        assert frame.fec_locate(code) is None
+
+
+def test_frame_parity_is_the_parity_of_len_to_crc():
+    for v in MESSAGES:
+        wire = bytes.fromhex(v["wire"])
+        assert frame.fec_parity(wire[1:-2]) == wire[-2:], v["name"]
+
+
+def test_fec_every_single_byte_error_of_a_68_byte_codeword_is_located():
+    """Every position with a few error values; every one of the 255 values at a few positions."""
+    rng = random.Random(68)
+    data = bytes(rng.randrange(256) for _ in range(66))
+    code = data + frame.fec_parity(data)
+    assert len(code) == 68
+    cases = [(i, e) for i in range(68) for e in (0x01, 0x80, 0xA5, 0xFF)]
+    cases += [(i, e) for i in (0, 1, 33, 65, 66, 67) for e in range(1, 256)]
+    for i, e in cases:
+        hit = bytearray(code)
+        hit[i] ^= e
+        assert frame.fec_locate(hit) == (i, e), (i, e)
+
+
+def test_every_single_damaged_byte_of_a_move_frame_is_delivered_intact():
+    """Each byte after SYNC of a 36-byte MOVE, with every error value: delivered as sent, nothing left pending."""
+    move = move_frame()
+    assert len(move) == 36
+    wrong = []
+    for i in range(1, 36):
+        for e in range(1, 256):
+            hit = bytearray(move)
+            hit[i] ^= e
+            d = frame.Decoder()
+            got = d.feed(hit)
+            if got != [event(move)] or d.pending():
+                wrong.append((i, e, got))
+    assert wrong == []
+
+
+def test_random_two_byte_damage_never_delivers_wrong_content():
+    from rbx1proto import messages
+    rng = random.Random(22)
+    intact = rejected = 0
+    for _ in range(3000):
+        t = rng.randrange(1, 15)
+        t, n = (t | 0x80, messages.response_len(t)) if rng.randrange(2) else (t, messages.request_len(t))
+        sent = frame.encode(rng.randrange(256), t, bytes(rng.randrange(256) for _ in range(n)))
+        i, j = rng.sample(range(1, len(sent)), 2)
+        hit = bytearray(sent)
+        hit[i] ^= rng.randrange(1, 256)
+        hit[j] ^= rng.randrange(1, 256)
+        d = frame.Decoder()
+        got = d.feed(hit) + d.reset()[1]
+        frames = [e for e in got if isinstance(e, frame.Frame)]
+        assert all(f == event(sent) for f in frames), (sent.hex(), i, j)
+        if frames:
+            intact += 1
+        else:
+            rejected += 1
+    assert rejected > 2000 and intact > 0
+
+
+@pytest.mark.parametrize("at, error, after", [(0, 0, 34), (10, 0x40, 36), (33, 0x01, 36), (34, 0x01, 34),
+                                              (1, 26 ^ 12, 36), (1, 26 ^ 40, 36)])
+def test_each_reading_delivers_at_its_last_byte(at, error, after):
+    """As sent at the last CRC byte (34), corrected at the last parity byte (36), LEN repaired at TYPE's length's."""
+    move = move_frame()
+    hit = bytearray(move)
+    hit[at] ^= error
+    d = frame.Decoder()
+    when = [k + 1 for k in range(36) if d.feed(hit[k:k + 1])]
+    assert when == [after]
+    assert not d.pending()
