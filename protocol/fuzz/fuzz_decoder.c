@@ -1,5 +1,5 @@
 /* fuzz_decoder.c - libFuzzer target: the stream decoder under arbitrary bytes and chunkings, the receiver's window
- * fed with every decoded frame, and every unpack. */
+ * fed with every decoded frame, every unpack, and an encoded frame with one damaged byte (it must decode intact). */
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -73,11 +73,17 @@ static void window_step(pass *p, const rbx1_frame *f) {
   mix(p, 0x300u | verdict);
 }
 
-static int occurs_in(const uint8_t *hay, size_t n, const uint8_t *needle, size_t m) {
-  size_t i;
-  if (m > n) return 0;
-  for (i = 0; i + m <= n; i++)
-    if (memcmp(hay + i, needle, m) == 0) return 1;
+/* 1 if the encoded frame wire[0..m) was on the wire as one of the decoder's readings allows: its bytes up to the
+ * CRC as sent (the parity after them, if any, unread), or all m bytes with at most one byte after SYNC damaged. */
+static int was_on_wire(const uint8_t *hay, size_t n, const uint8_t *wire, size_t m) {
+  size_t i, k;
+  for (i = 0; i + m - RBX1_FEC_BYTES <= n; i++) {
+    size_t diff = 0;
+    if (memcmp(hay + i, wire, m - RBX1_FEC_BYTES) == 0) return 1;
+    if (i + m > n || hay[i] != RBX1_SYNC) continue;
+    for (k = 1; k < m && diff < 2; k++) diff += hay[i + k] != wire[k];
+    if (diff < 2) return 1;
+  }
   return 0;
 }
 
@@ -88,10 +94,10 @@ static void on_frame(void *ctx, const rbx1_frame *f) {
   CHECK(f->len <= RBX1_MAX_PAYLOAD);
   n = rbx1_frame_encode(wire, sizeof wire, f->seq, f->type, f->payload, f->len);
   CHECK(n == (size_t)f->len + RBX1_FRAME_OVERHEAD);
-  CHECK(rbx1_crc32(wire + 1, n - 5) == f->crc); /* CRC valid */
-  CHECK(((uint32_t)wire[n - 4] | ((uint32_t)wire[n - 3] << 8) | ((uint32_t)wire[n - 2] << 16) |
-         ((uint32_t)wire[n - 1] << 24)) == f->crc);
-  CHECK(occurs_in(p->stream, p->stream_len, wire, n)); /* re-encodes to bytes that were on the wire */
+  CHECK(rbx1_crc32(wire + 1, n - 7) == f->crc); /* CRC valid */
+  CHECK(((uint32_t)wire[n - 6] | ((uint32_t)wire[n - 5] << 8) | ((uint32_t)wire[n - 4] << 16) |
+         ((uint32_t)wire[n - 3] << 24)) == f->crc);
+  CHECK(was_on_wire(p->stream, p->stream_len, wire, n)); /* re-encodes to bytes that were on the wire */
   mix(p, 0x100u | f->seq);
   mix(p, f->type);
   mix(p, f->len);
@@ -124,8 +130,8 @@ static void run_pass(pass *p, const uint8_t *sizes, size_t nsizes, int allow_res
     if (n > p->stream_len - pos) n = p->stream_len - pos;
     rbx1_decoder_feed(&d, p->stream + pos, n);
     pos += n;
-    CHECK(d.n < RBX1_MAX_FRAME);
-    CHECK(rbx1_decoder_pending(&d) == (d.n > 0));
+    CHECK(d.n < RBX1_MAX_FRAME && d.skip <= RBX1_FEC_BYTES && (d.skip == 0 || d.n == 0));
+    CHECK(rbx1_decoder_pending(&d) == (d.n > 0 || d.skip > 0));
   }
 }
 
@@ -176,6 +182,63 @@ static void fuzz_unpack(const uint8_t *data, size_t size) {
   }
 }
 
+/* One damaged byte: a frame built from the input (SEQ, TYPE, and for a request or response TYPE its own payload
+ * length), with the byte at a chosen position after SYNC XORed with a chosen non-zero value, decodes to exactly that
+ * frame, in one chunk or byte by byte, with nothing left pending. The payload comes from a generator seeded by the
+ * input: a payload the fuzzer wrote could hold a shorter frame that legitimately decodes first (readings are tried
+ * in byte order). LEN is damaged only when TYPE has a fixed length, the one thing that can repair it. */
+typedef struct {
+  rbx1_frame got;
+  int frames, rejects;
+} one_frame;
+
+static void one_on_frame(void *ctx, const rbx1_frame *f) {
+  one_frame *o = (one_frame *)ctx;
+  o->got = *f;
+  o->frames++;
+}
+
+static void one_on_reject(void *ctx, uint8_t status, uint8_t seq, uint8_t has_seq) {
+  (void)status;
+  (void)seq;
+  (void)has_seq;
+  ((one_frame *)ctx)->rejects++;
+}
+
+static void fuzz_one_damaged_byte(const uint8_t *data, size_t size) {
+  uint8_t payload[RBX1_MAX_PAYLOAD], wire[RBX1_MAX_FRAME], seq, type, error;
+  uint32_t x = 2463534242u, crc;
+  size_t n, pos, i, chunk;
+  int len;
+  if (size < 6) return;
+  seq = data[0];
+  type = data[1];
+  len = (type & 0x80u) ? rbx1_response_len((uint8_t)(type & 0x7Fu)) : rbx1_request_len(type);
+  if (len < 0) len = data[2] % (RBX1_MAX_PAYLOAD + 1);
+  for (i = 5; i < size; i++) x = (x ^ data[i]) * 16777619u; /* the seed: the rest of the input */
+  for (i = 0; i < (size_t)len; i++) {
+    x ^= x << 13, x ^= x >> 17, x ^= x << 5; /* xorshift32 */
+    payload[i] = (uint8_t)x;
+  }
+  n = rbx1_frame_encode(wire, sizeof wire, seq, type, payload, (uint8_t)len);
+  CHECK(n == (size_t)len + RBX1_FRAME_OVERHEAD);
+  crc = rbx1_crc32(wire + 1, (size_t)len + 3);
+  pos = 1 + data[3] % (n - 1);
+  if (pos == 1 && ((type & 0x80u) ? rbx1_response_len((uint8_t)(type & 0x7Fu)) : rbx1_request_len(type)) < 0) pos = 2;
+  error = data[4] ? data[4] : 1;
+  wire[pos] ^= error;
+  for (chunk = 1; chunk <= n; chunk += n - 1) {
+    one_frame o;
+    rbx1_decoder d;
+    memset(&o, 0, sizeof o);
+    rbx1_decoder_init(&d, one_on_frame, one_on_reject, &o);
+    for (i = 0; i < n; i += chunk) rbx1_decoder_feed(&d, wire + i, chunk < n - i ? chunk : n - i);
+    CHECK(o.frames == 1 && o.rejects == 0 && !rbx1_decoder_pending(&d));
+    CHECK(o.got.seq == seq && o.got.type == type && o.got.len == len && o.got.crc == crc);
+    CHECK(memcmp(o.got.payload, payload, (size_t)len) == 0);
+  }
+}
+
 /* Input: byte 0 = number of chunk-size bytes that follow (mod 16), then those sizes, then the stream. */
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
   pass whole = {0}, chunked = {0}, reset = {0};
@@ -198,5 +261,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     run_pass(&reset, sizes, nsizes, 1); /* with inter-byte timeouts: invariants only */
   }
   fuzz_unpack(data, size);
+  fuzz_one_damaged_byte(data, size);
   return 0;
 }
