@@ -73,14 +73,15 @@ static void window_step(pass *p, const rbx1_frame *f) {
   mix(p, 0x300u | verdict);
 }
 
-/* 1 if the encoded frame wire[0..m) was on the wire as one of the decoder's readings allows: its bytes up to the
- * CRC as sent (the parity after them, if any, unread), or all m bytes with at most one byte after SYNC damaged. */
+/* 1 if the encoded frame wire[0..m) was on the wire as one of the decoder's readings allows: its bytes after SYNC
+ * up to the CRC as sent (the parity after them, if any, unread), or all m bytes after SYNC with at most one damaged.
+ * SYNC itself may be any byte: the byte right after a delivered frame is read as a SYNC whatever its value. */
 static int was_on_wire(const uint8_t *hay, size_t n, const uint8_t *wire, size_t m) {
   size_t i, k;
   for (i = 0; i + m - RBX1_FEC_BYTES <= n; i++) {
     size_t diff = 0;
-    if (memcmp(hay + i, wire, m - RBX1_FEC_BYTES) == 0) return 1;
-    if (i + m > n || hay[i] != RBX1_SYNC) continue;
+    if (memcmp(hay + i + 1, wire + 1, m - RBX1_FEC_BYTES - 1) == 0) return 1;
+    if (i + m > n) continue;
     for (k = 1; k < m && diff < 2; k++) diff += hay[i + k] != wire[k];
     if (diff < 2) return 1;
   }

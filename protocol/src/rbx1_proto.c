@@ -149,6 +149,7 @@ void rbx1_decoder_init(rbx1_decoder *d, rbx1_on_frame on_frame, rbx1_on_reject o
   d->n = 0;
   d->tried = 0;
   d->skip = 0;
+  d->after = 0;
   d->on_frame = on_frame;
   d->on_reject = on_reject;
   d->ctx = ctx;
@@ -206,13 +207,15 @@ static void deliver(rbx1_decoder *d, uint8_t len) {
   f.len = len;
   f.crc = (uint32_t)c[0] | ((uint32_t)c[1] << 8) | ((uint32_t)c[2] << 16) | ((uint32_t)c[3] << 24);
   memcpy(f.payload, d->buf + 4, len);
-  if (d->n >= len + RBX1_FRAME_OVERHEAD) {
-    decoder_shift(d, (uint8_t)(len + RBX1_FRAME_OVERHEAD)); /* bytes after it (after a rescan) stay */
-  } else {                                                  /* delivered at its CRC: its parity is still to come */
+  if (d->n > len + RBX1_FRAME_OVERHEAD) { /* bytes after it (after a rescan) stay: the first starts a candidate */
+    d->n = (uint8_t)(d->n - (len + RBX1_FRAME_OVERHEAD));
+    memmove(d->buf, d->buf + len + RBX1_FRAME_OVERHEAD, d->n);
+  } else { /* the next byte starts one; a frame delivered at its CRC has its parity still to come */
     d->skip = (uint8_t)(len + RBX1_FRAME_OVERHEAD - d->n);
+    d->after = 1;
     d->n = 0;
-    d->tried = 0;
   }
+  d->tried = 0;
   if (d->on_frame) d->on_frame(d->ctx, &f);
 }
 
@@ -253,8 +256,12 @@ static void decoder_settle(rbx1_decoder *d) {
     }
     if (delivered) continue; /* the next candidate, if any, is in buf */
     if (d->n < last) return;
-    decoder_shift(d, 1); /* resume hunting at the byte after the rejected SYNC */
-    if (d->on_reject) d->on_reject(d->ctx, len <= RBX1_MAX_PAYLOAD ? RBX1_BAD_CRC : RBX1_BAD_LENGTH, seq, 1);
+    {
+      uint8_t synced = d->buf[0] == RBX1_SYNC; /* else the byte after a frame, taken for a damaged SYNC: silent */
+      decoder_shift(d, 1);                     /* resume hunting at the byte after the rejected SYNC */
+      if (synced && d->on_reject)
+        d->on_reject(d->ctx, len <= RBX1_MAX_PAYLOAD ? RBX1_BAD_CRC : RBX1_BAD_LENGTH, seq, 1);
+    }
   }
 }
 
@@ -265,7 +272,8 @@ void rbx1_decoder_feed(rbx1_decoder *d, const uint8_t *data, size_t n) {
       d->skip--;
       continue;
     }
-    if (d->n == 0 && data[i] != RBX1_SYNC) continue; /* hunting */
+    if (d->n == 0 && data[i] != RBX1_SYNC && !d->after) continue; /* hunting */
+    d->after = 0;
     d->buf[d->n++] = data[i];
     decoder_settle(d);
   }
@@ -274,6 +282,7 @@ void rbx1_decoder_feed(rbx1_decoder *d, const uint8_t *data, size_t n) {
 int rbx1_decoder_reset(rbx1_decoder *d) {
   int pending = rbx1_decoder_pending(d);
   d->skip = 0; /* parity that never came: a peer of version 4 sends none */
+  d->after = 0;
   /* Every byte held is older than the timeout: drop the candidate's SYNC and scan the rest again, as after a
    * rejection, so a whole frame hidden inside is still delivered; a new candidate left incomplete is as stale, and
    * goes the same way. */

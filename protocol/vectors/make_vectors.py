@@ -1,13 +1,16 @@
 #!/usr/bin/python3
-"""make_vectors.py - writes the shared test vectors (messages, streams, bad_payloads, fec, crc, window .json) here.
+"""make_vectors.py - writes the shared test vectors (messages, streams, random_streams, bad_payloads, fec,
+crc, window .json) here.
 
-Each stream's expected events are written down by construction here (not read back from a decoder); the script
-then checks that the Python decoder agrees before writing, and both the C and the Python tests check every vector.
+Each stream's expected events are written down by construction here (not read back from a decoder; random_streams
+alone are the Python decoder's, for the C one to agree with); the script then checks that the Python decoder agrees
+before writing, and both the C and the Python tests check every vector.
 Run after a change to messages.json: /usr/bin/python3 protocol/vectors/make_vectors.py
 """
 import binascii
 import json
 import os
+import random
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -95,6 +98,13 @@ def crc16_collision():
     assert binascii.crc_hqx(got[body], 0xFFFF) == binascii.crc_hqx(sent[body], 0xFFFF)  # CRC-16 blind to it
     assert frame.crc32(got[body]) != frame.crc32(sent[body]) and got[-6:] == sent[-6:]
     return sent, got, messages.unpack_request(MsgType.MOVE, got[4:-6])["target"][0]
+
+
+def as_events(items):
+    """A decoder's Frames and Rejects in the vectors' event format."""
+    return [{"frame": {"seq": e.seq, "type": e.type, "payload": e.payload.hex(), "crc": e.crc}}
+            if isinstance(e, frame.Frame) else {"reject": {"status": Status(e.status).name, "seq": e.seq}}
+            for e in items]
 
 
 def ev_reject(status, seq):
@@ -191,8 +201,9 @@ def stream_vectors():
     add("bad_crc_then_valid", "MOVE with two payload bits flipped in two bytes, then a valid STATUS",
         damage(move, {10: 0x80, 20: 0x02}) + status, [ev_reject(Status.BAD_CRC, 7), ev_frame(status)])
     add("valid_hidden_in_corrupt", "a frame with two damaged bytes whose payload holds a whole valid frame: "
-        "rejected, then the inner frame found by the rescan", outer_bad, [ev_reject(Status.BAD_CRC, 0x21),
-                                                                            ev_frame(inner)])
+        "rejected, then the inner frame found by the rescan; the outer frame's bytes after it start a candidate (the "
+        "byte after a frame is read as a SYNC), pending until the timeout drops it silently", outer_bad,
+        [ev_reject(Status.BAD_CRC, 0x21), ev_frame(inner)], pending=True)
     add("corrupt_len_swallows_next", "a NAK with LEN hit (11 instead of 1; TYPE 0x7F has no fixed length, so LEN "
         "cannot be repaired): its candidate ends inside the next MOVE; rejected, the MOVE found by the rescan",
         nak_len_hit + move, [ev_reject(Status.BAD_CRC, 3), ev_frame(move)])
@@ -245,6 +256,12 @@ def stream_vectors():
             add(f"fec_{tag}_len_{how}_repaired", f"{len(b)}-byte frame with LEN {n} damaged to {bad}: the reading with "
                 f"TYPE 0x{b[3]:02x}'s length ({n}) in place of LEN holds (syndromes 0, CRC), the frame delivered",
                 damage(b, {1: n ^ bad}), [ev_frame(b)])
+        follower = status if tag == "move" else move
+        add(f"fec_{tag}_v4_then_silence", f"the {len(b)}-byte frame without its parity (version 4) then silence: "
+            "delivered at its CRC, pending until the inter-byte timeout forgets the parity; a frame after it is read",
+            b[:-2], [ev_frame(b)], pending=True, then=(follower, [ev_frame(follower)]))
+        add(f"fec_{tag}_delivered_at_crc_then_frame", f"the {len(b)}-byte frame (delivered at its CRC) and at once "
+            "another frame: the parity skipped, the next frame read", b + follower, [ev_frame(b), ev_frame(follower)])
         errors, at = two_errors_the_parity_miscorrects(b)
         add(f"fec_{tag}_two_bytes_rejected", f"{len(b)}-byte frame with bytes {sorted(errors)} damaged: the syndromes "
             f"point at byte {at}, and the frame so \"corrected\" fails its CRC: rejected BAD_CRC",
@@ -256,12 +273,20 @@ def stream_vectors():
         move[:-2], [ev_frame(move)], pending=True, then=(status, [ev_frame(status)]))
     add("v4_frames_back_to_back", "two version 4 frames with no gap: the first is delivered at its CRC and the next "
         "frame's SYNC and LEN are skipped as its parity, so the second is not seen (a version 4 peer is heard only "
-        "after silences)", move[:-2] + status[:-2], [ev_frame(move)])
+        "after silences); its SEQ starts a candidate (the byte after a frame is read as a SYNC) that the timeout "
+        "drops silently", move[:-2] + status[:-2], [ev_frame(move)], pending=True)
 
-    def as_events(items):
-        return [{"frame": {"seq": e.seq, "type": e.type, "payload": e.payload.hex(), "crc": e.crc}}
-                if isinstance(e, frame.Frame) else {"reject": {"status": Status(e.status).name, "seq": e.seq}}
-                for e in items]
+    move2 = frame.encode(9, MsgType.MOVE, messages.pack_request(MsgType.MOVE, target=[6, 5, 4, 3, 2, 1], duration_ms=9))
+    add("sync_damaged_after_frame", "a MOVE, then a MOVE whose SYNC is damaged: the byte after a delivered frame is "
+        "read as a SYNC, so both are delivered", move + damage(move2, {0: 0x5A}), [ev_frame(move), ev_frame(move2)])
+    add("sync_and_payload_damaged_after_frame", "a MOVE, then a MOVE whose SYNC and one payload byte are damaged: "
+        "the second is corrected by its parity and delivered", move + damage(move2, {0: 0x01, 12: 0x40}),
+        [ev_frame(move), ev_frame(move2)])
+    add("sync_damaged_first_frame", "a MOVE whose SYNC is damaged with no frame before it: not seen (nothing, "
+        "nothing pending)", damage(move2, {0: 0x01}), [])
+    add("garbage_after_frame_silent", "a STATUS, a stray byte, then a MOVE: the stray byte starts a candidate (LEN "
+        "read as 0xA5, TYPE as 0x1A: no fixed length), dropped without a rejection; the MOVE is found by the rescan",
+        status + b"\x42" + move, [ev_frame(status), ev_frame(move)])
 
     for s in S:
         d = frame.Decoder()
@@ -275,6 +300,32 @@ def stream_vectors():
         if "then" in s and as_events(d.feed(bytes.fromhex(s["then"]["wire"]))) != s["then"]["events"]:
             raise SystemExit(f"make_vectors: {s['name']}: the decoder disagrees with the events after the timeout")
     return S
+
+
+def random_stream_vectors():
+    """Random streams of frames (some with 1 to 3 damaged bytes, some without their parity or cut short) between
+    noise, and the events the Python decoder gives for them (read back, not constructed: the C test must agree)."""
+    rng = random.Random(505)
+    out = []
+    for k in range(200):
+        wire = bytearray()
+        for _ in range(rng.randrange(1, 5)):
+            wire += bytes(rng.randrange(256) for _ in range(rng.choice((0, 0, 1, 3))))
+            t = rng.choice([int(m) for m in MsgType] + [0x33])
+            t |= 0x80 if rng.randrange(2) and t != 0x33 else 0
+            n = frame.implied_len(t)
+            b = bytearray(frame.encode(rng.randrange(256), t, bytes(rng.randrange(256) for _ in range(
+                n if n >= 0 else rng.randrange(59)))))
+            for _ in range(rng.choice((0, 1, 1, 1, 2, 3))):
+                b[rng.randrange(1, len(b))] ^= rng.randrange(1, 256)
+            cut = rng.choice((0, 0, 0, 2, 2, 5))
+            wire += b[:len(b) - cut]
+        d = frame.Decoder()
+        events = d.feed(wire)
+        pending, after = d.reset()
+        out.append({"name": f"random {k}", "wire": bytes(wire).hex(), "events": as_events(events),
+                    "pending": pending, "after_timeout": as_events(after)})
+    return out
 
 
 def bad_payload_vectors():
@@ -489,6 +540,10 @@ def main():
         "bad_payloads.json": {"description": "CRC-valid frames whose payload length is wrong for their type: "
                               "unpack refuses them (BAD_LENGTH; the firmware answers a request like this with "
                               "status BAD_LENGTH, except ESTOP, which stops the arm whatever its length)", "vectors": bad_payload_vectors()},
+        "random_streams.json": {"description": "random streams of frames (some with 1 to 3 damaged bytes, some "
+                                "without their parity or cut short) between noise, with the events the Python decoder "
+                                "gives, after_timeout as in streams.json: read back from it, so that the C decoder is "
+                                "checked against the Python one in any chunking", "vectors": random_stream_vectors()},
         "fec.json": {"description": "Reed-Solomon parity (GF(2^8), 0x11D, generator (x + 1)(x + 2)): parity "
                      "vectors give data and its 2 parity bytes; locate vectors give a codeword (data then parity) and "
                      "what locating finds: at = index of the one damaged byte and error = the XOR that restores it, "

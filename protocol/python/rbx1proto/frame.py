@@ -84,12 +84,15 @@ class Decoder:
     """Streaming decoder. feed() returns the Frames and Rejects completed by the bytes, in stream order.
     A frame whose CRC holds is delivered at its last CRC byte (its parity is skipped when it comes); one whose CRC
     fails is read again with its parity (one byte corrected), then with the length its TYPE implies in place of
-    LEN. After a rejection it resumes hunting at the byte after the rejected SYNC (see PROTOCOL.md)."""
+    LEN. The byte right after a delivered frame starts a candidate whatever its value (a damaged SYNC; dropped
+    silently if no reading holds). After a rejection it resumes hunting at the byte after the rejected SYNC (see
+    PROTOCOL.md)."""
 
     def __init__(self):
         self.buf = bytearray()
         self.tried = 0  # the candidate's readings ending at or before this many bytes have been tried
         self.skip = 0   # parity bytes still to come of a frame delivered before them
+        self.after = False  # the next byte follows a delivered frame: it starts a candidate whatever its value
 
     def pending(self):
         """True while a frame has started but not completed, or its parity bytes are still to come."""
@@ -100,6 +103,7 @@ class Decoder:
         items): whether a frame was pending, and the Frames/Rejects the rescan completed (see PROTOCOL.md)."""
         pending = self.pending()
         self.skip = 0  # parity that never came: a peer of version 4 sends none
+        self.after = False
         out = []
         while self.buf:
             self._shift(1)
@@ -117,8 +121,9 @@ class Decoder:
             if self.skip:
                 self.skip -= 1
                 continue
-            if not self.buf and b != SYNC:
+            if not self.buf and b != SYNC and not self.after:
                 continue
+            self.after = False
             self.buf.append(b)
             self._settle(out)
         return out
@@ -148,12 +153,13 @@ class Decoder:
     def _deliver(self, length, out):
         buf = self.buf
         out.append(Frame(buf[2], buf[3], bytes(buf[4:4 + length]), int.from_bytes(buf[4 + length:8 + length], "little")))
-        if len(buf) >= length + OVERHEAD:
-            self._shift(length + OVERHEAD)  # bytes after it (after a rescan) stay
-        else:
+        if len(buf) > length + OVERHEAD:  # bytes after it (after a rescan) stay: the first starts a candidate
+            del buf[:length + OVERHEAD]
+        else:  # the next byte starts one; a frame delivered at its CRC has its parity still to come
             self.skip = length + OVERHEAD - len(buf)
+            self.after = True
             del buf[:]
-            self.tried = 0
+        self.tried = 0
 
     def _settle(self, out):
         buf = self.buf
@@ -181,5 +187,7 @@ class Decoder:
                 continue
             if len(buf) < last:
                 return
+            synced = buf[0] == SYNC  # else the byte after a frame, taken for a damaged SYNC: dropped silently
             self._shift(1)
-            out.append(Reject(BAD_CRC if length <= MAX_PAYLOAD else BAD_LENGTH, seq))
+            if synced:
+                out.append(Reject(BAD_CRC if length <= MAX_PAYLOAD else BAD_LENGTH, seq))
