@@ -12,6 +12,7 @@ RESPONSE_BIT = 0x80
 SLOW_TYPES = (MsgType.CONFIG_SET, MsgType.CONFIG_RESET)  # they write EEPROM: answered within 1 s (PROTOCOL.md)
 SLOW_TIMEOUT = 1.0
 INTER_BYTE_TIMEOUT = 0.05  # a partial frame older than this is dropped after a rescan (PROTOCOL.md)
+AHEAD = 4  # stream(): frames on the line ahead of the answers (PROTOCOL.md "Pacing")
 WRITE_STALL = 1.0  # a port that takes no byte for this long (a device that stopped reading): LinkError
 PROBE_TYPE = MsgType.NAK  # a probe: a frame of no request type, NAKed UNKNOWN_TYPE in order (PROTOCOL.md "Probe")
 
@@ -59,6 +60,8 @@ class Link:
         self.needless_timeouts = 0  # stream(): timeouts a probe's NAK came after, that probe written before them
         self.max_window = window  # a cap on the firmware's window (None: the firmware's)
         self.window = 1           # requests in flight in stream(): min(max_window, HELLO's window)
+        self.ahead = AHEAD        # stream(): frames written beyond the last one an answer or NAK was about (0: the
+                                  # whole window at once, a benchmark's baseline)
         self.baudrate = baudrate
         self.resync = False       # a stream failed: its lost SEQs would be gaps, the next stream starts with HELLO
         self.decoder = frame.Decoder()
@@ -167,6 +170,7 @@ class Link:
         by_release = set()       # requests to send again for that reason in this round
         probes = []              # (SEQ, copy number) of the probes written whose NAK has not come, oldest first
         tx = 0
+        seen = 0                 # the latest copy an answer or NAK was about: the copies after it are on the line
         base = nxt = tries = silences = 0  # silences: timeouts since the oldest unanswered request changed
         oldest_since = 0.0
         last_timeout_tx = 0
@@ -231,8 +235,13 @@ class Link:
             return min(late, max(due[i], oldest_since) + self.timeout / 4 * 2 ** silences)
 
         while base < n:
-            if nxt < n and nxt - base < win:
-                fresh = list(range(nxt, min(n, base + win)))
+            # New requests go out as answers come back (PROTOCOL.md "Pacing"): a resend then waits behind a few
+            # frames, not behind the whole window, and is answered before the window runs dry.
+            room = min(n, base + win) - nxt
+            if win > 1 and self.ahead:
+                room = min(room, self.ahead - (tx - seen))
+            if nxt < n and room > 0:
+                fresh = list(range(nxt, nxt + room))
                 nxt = fresh[-1] + 1
                 send(fresh, False)
             again = set()
@@ -243,6 +252,7 @@ class Link:
                     continue
                 copy = probe_answered(ev)
                 if copy is not None:
+                    seen = max(seen, copy)
                     self.probes_answered += 1
                     if copy < last_timeout_tx:
                         self.needless_timeouts += 1  # the answers were on their way: the line model was early
@@ -269,6 +279,8 @@ class Link:
                         continue
                 events[i] += 1
                 copy = txs[i][min(events[i], len(txs[i])) - 1]  # the earliest copy this event can be about
+                if not (ev.type != MsgType.NAK and held[i]):  # a held request's answer is about no copy
+                    seen = max(seen, copy)
                 if ev.type == MsgType.NAK:
                     if reason == Status.SEQ_OLD:
                         self.resync = True

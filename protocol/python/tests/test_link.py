@@ -13,6 +13,7 @@ import serial.serialutil
 
 from rbx1proto import frame, messages  # noqa: E402
 from rbx1proto.link import Link, LinkError  # noqa: E402
+from rbx1proto import link as link_module  # noqa: E402
 from rbx1proto.messages import MsgType, Status  # noqa: E402
 from rbx1proto.window import Window  # noqa: E402
 
@@ -375,6 +376,7 @@ def test_stream_window_capped_by_the_host(pty_pair):
 
 def test_stream_resends_only_the_missing_one_after_a_dropped_request(pty_pair):
     link, peer = pty_pair
+    link.ahead = 0  # the whole window written at once (no pacing): the 7 after the lost one are held
     link.hello()
     stream_moves(link, 5)
     peer.drop = 1  # the next request vanishes: the ones after it are held (NAK HELD) until it is sent again
@@ -382,6 +384,21 @@ def test_stream_resends_only_the_missing_one_after_a_dropped_request(pty_pair):
     assert peer.moves == list(range(25)), "executed out of order or twice"
     assert peer.held[:7] == [(link.seq - 19 + i) & 0xFF for i in range(7)] and not peer.refused
     assert link.retransmissions > 0
+
+
+def test_stream_paced_keeps_the_resend_close_behind_the_lost_request(pty_pair):
+    # With pacing (PROTOCOL.md "Pacing") no more than AHEAD frames are on the line beyond the latest copy an answer
+    # or NAK was about: a lost request has at most AHEAD - 1 followers held before its resend goes out.
+    link, peer = pty_pair
+    link.timeout = 4.0  # no timeout in this test, however loaded the machine
+    link.hello()
+    assert link.ahead == link_module.AHEAD == 4
+    peer.drop = 1
+    rs = stream_moves(link, 20)
+    assert [r["status"] for r in rs] == [Status.OK] * 20
+    assert peer.moves == list(range(20)) and peer.duplicates == 0, "lost, repeated or reordered"
+    assert len(peer.held) == link.ahead - 1 and not peer.refused
+    assert link.retransmissions == 1 and link.timeouts == 0
 
 
 def test_stream_lost_answers_are_answered_from_the_window(pty_pair):
@@ -452,6 +469,7 @@ def test_stream_resends_only_what_the_answers_show_lost(pty_pair):
     stream_moves(link, 12)
     assert peer.moves == list(range(12)) and link.retransmissions == 1
     peer.drop = 1  # the next stream's first frame vanishes: its 7 followers in the window are held
+    link.ahead = 0  # (the whole window written at once, no pacing)
     rs = stream_moves(link, 12, start=12)
     assert [r["status"] for r in rs] == [Status.OK] * 12
     assert peer.moves == list(range(24)) and len(peer.held) == 7 and not peer.refused
@@ -478,6 +496,7 @@ def test_stream_lost_resend_is_sent_again_after_the_probe_not_the_timeout(pty_pa
     # rule without the probe waited for the timeout (1 s past due here: the count of timeouts tells).
     link, peer = pty_pair
     link.timeout = 4.0  # a stream's deadline: a quarter of it (1 s) after the answer is due
+    link.ahead = 0  # the whole window at once: nothing new can follow the resend, only the probe
     link.hello()
     peer.drop_seq = {link.seq: 2}
     rs = stream_moves(link, 10)
@@ -485,6 +504,20 @@ def test_stream_lost_resend_is_sent_again_after_the_probe_not_the_timeout(pty_pa
     assert peer.moves == list(range(10)) and peer.duplicates == 0, "lost, repeated or reordered"
     assert link.timeouts == 0 and link.retransmissions == 2  # the first request's two resends, nothing else
     assert link.probes >= 2  # behind each resend (and behind the stream's last request)
+
+
+def test_stream_paced_lost_resend_is_shown_by_the_requests_after_it(pty_pair):
+    # Paced, new requests follow a resend: their NAKs (HELD) come after it, so a lost resend is sent again at once,
+    # with neither a probe nor a timeout.
+    link, peer = pty_pair
+    link.timeout = 4.0
+    link.hello()
+    peer.drop_seq = {link.seq: 2}
+    rs = stream_moves(link, 20)
+    assert [r["status"] for r in rs] == [Status.OK] * 20
+    assert peer.moves == list(range(20)) and peer.duplicates == 0, "lost, repeated or reordered"
+    assert link.timeouts == 0 and link.retransmissions == 2
+    assert link.probes == 1  # only behind the stream's last request
 
 
 def test_stream_lost_last_request_is_sent_again_after_the_probe(pty_pair):
