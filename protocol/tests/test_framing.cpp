@@ -132,6 +132,25 @@ TEST(Decoder, StreamVectorsInAnyChunking) {
   }
 }
 
+// Random damaged streams and the Python decoder's events for them: the C decoder agrees, in any chunking.
+TEST(Decoder, AgreesWithThePythonDecoderOnRandomDamagedStreams) {
+  const json vs = load_vectors("random_streams.json");
+  ASSERT_GE(vs.size(), 100u);
+  size_t frames = 0;
+  for (const auto& v : vs) {
+    auto wire = unhex(v["wire"]);
+    for (const auto& ch : std::vector<std::vector<size_t>>{{1 << 20}, {1}, {3, 1, 7}}) {
+      bool pending = false;
+      json timeout;
+      EXPECT_EQ(decode_chunked(wire, ch, &pending, &timeout), v["events"]) << v["name"] << " chunk " << ch[0];
+      EXPECT_EQ(pending, v["pending"].get<bool>()) << v["name"];
+      EXPECT_EQ(timeout, v["after_timeout"]) << v["name"] << " chunk " << ch[0];
+    }
+    frames += v["events"].size();
+  }
+  EXPECT_GT(frames, 100u);
+}
+
 // A MOVE whose line damage leaves version 3's CRC-16 intact (vector crc16_collision): the CRC-32 rejects it.
 TEST(Decoder, RejectsTheCrc16Collision) {
   const json crcs = load_vectors("crc.json");
