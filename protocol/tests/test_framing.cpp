@@ -419,6 +419,27 @@ TEST(Decoder, EverySingleDamagedByteOfAMoveFrameIsDeliveredIntact) {
   EXPECT_EQ(wrong, 0);
 }
 
+// A STATUS, then a MOVE with any one byte damaged, its SYNC included (the byte right after a delivered frame is read
+// as a SYNC whatever its value): both delivered, no rejection, nothing pending.
+TEST(Decoder, EverySingleDamagedByteOfAMoveAfterAnotherFrameIsDeliveredIntact) {
+  const auto move = move_frame(), status = encode(8, RBX1_MSG_STATUS, {});
+  const json want = json::array({frame_event(status), frame_event(move)});
+  int wrong = 0;
+  for (size_t i = 0; i < move.size(); i++) {
+    for (int e = 1; e < 256; e++) {
+      auto wire = status;
+      wire.insert(wire.end(), move.begin(), move.end());
+      wire[status.size() + i] ^= static_cast<uint8_t>(e);
+      bool pending = true;
+      json got = decode_chunked(wire, {i % 2 ? size_t(1) : size_t(64)}, &pending);
+      if (got != want || pending) {
+        if (wrong++ < 5) ADD_FAILURE() << "byte " << i << " error " << e << ": " << got.dump();
+      }
+    }
+  }
+  EXPECT_EQ(wrong, 0);
+}
+
 // Random frames with two damaged bytes after SYNC: never delivered with content other than what was sent (the CRC
 // refuses what the parity "corrects" wrongly); most are rejected.
 TEST(Decoder, RandomTwoByteDamageNeverDeliversWrongContent) {

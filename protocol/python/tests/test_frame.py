@@ -230,6 +230,22 @@ def test_every_single_damaged_byte_of_a_move_frame_is_delivered_intact():
     assert wrong == []
 
 
+def test_every_single_damaged_byte_of_a_move_after_another_frame_is_delivered_intact():
+    """A STATUS, then a MOVE with any one byte damaged, its SYNC included (the byte right after a delivered frame is
+    read as a SYNC whatever its value): both delivered, no rejection, nothing pending."""
+    move, status = move_frame(), frame.encode(8, 2)
+    wrong = []
+    for i in range(36):
+        for e in range(1, 256):
+            hit = bytearray(move)
+            hit[i] ^= e
+            d = frame.Decoder()
+            got = d.feed(status + hit)
+            if got != [event(status), event(move)] or d.pending():
+                wrong.append((i, e, got))
+    assert wrong == []
+
+
 def test_random_two_byte_damage_never_delivers_wrong_content():
     from rbx1proto import messages
     rng = random.Random(22)
