@@ -125,7 +125,10 @@ static void run_pass(pass *p, const uint8_t *sizes, size_t nsizes, int allow_res
   while (pos < p->stream_len) {
     size_t n = nsizes ? sizes[k++ % nsizes] : p->stream_len;
     if (n == 0) {
-      if (allow_reset) rbx1_decoder_reset(&d);
+      if (allow_reset) {
+        rbx1_decoder_reset(&d);
+        CHECK(!rbx1_decoder_pending(&d)); /* nothing is awaited after a timeout, parity included */
+      }
       continue;
     }
     if (n > p->stream_len - pos) n = p->stream_len - pos;

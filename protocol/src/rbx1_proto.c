@@ -227,38 +227,36 @@ static void deliver(rbx1_decoder *d, uint8_t len) {
  * below the candidate's last reading's end <= RBX1_MAX_FRAME, so the next byte always fits. */
 static void decoder_settle(rbx1_decoder *d) {
   for (;;) {
-    uint8_t len, seq, last = 0, end, delivered = 0;
-    int alt;
+    uint8_t len, end, delivered = 0;
     if (d->n < 4) return; /* SYNC LEN SEQ TYPE */
     len = d->buf[1];
-    seq = d->buf[2];
-    alt = implied_len(d->buf[3]);
-    if (alt == (int)len) alt = -1;
-    if (len <= RBX1_MAX_PAYLOAD) last = (uint8_t)(len + RBX1_FRAME_OVERHEAD);
-    if (alt >= 0 && alt + RBX1_FRAME_OVERHEAD > last) last = (uint8_t)(alt + RBX1_FRAME_OVERHEAD);
-    for (end = (uint8_t)(d->tried + 1); end <= d->n && end <= last; end++) {
+    if (d->tried < 4) { /* a new candidate: where its readings end, worked out once */
+      int alt = implied_len(d->buf[3]);
+      d->alt_end = (alt >= 0 && alt != (int)len) ? (uint8_t)(alt + RBX1_FRAME_OVERHEAD) : 0;
+      d->last = len <= RBX1_MAX_PAYLOAD ? (uint8_t)(len + RBX1_FRAME_OVERHEAD) : 0;
+      if (d->alt_end > d->last) d->last = d->alt_end;
+    }
+    for (end = (uint8_t)(d->tried + 1); end <= d->n && end <= d->last; end++) {
       d->tried = end;
-      if (len <= RBX1_MAX_PAYLOAD && end == len + RBX1_FRAME_OVERHEAD - RBX1_FEC_BYTES && crc_holds(d, len)) {
+      if (len <= RBX1_MAX_PAYLOAD && end == len + (RBX1_FRAME_OVERHEAD - RBX1_FEC_BYTES) && crc_holds(d, len)) {
         delivered = 1;
-        deliver(d, len);
-        break;
+      } else if (len <= RBX1_MAX_PAYLOAD && end == len + RBX1_FRAME_OVERHEAD && corrected_holds(d, len)) {
+        delivered = 1;
+      } else if (end == d->alt_end && relength_holds(d, (uint8_t)(end - RBX1_FRAME_OVERHEAD))) {
+        delivered = 1;
+        len = (uint8_t)(end - RBX1_FRAME_OVERHEAD);
       }
-      if (len <= RBX1_MAX_PAYLOAD && end == len + RBX1_FRAME_OVERHEAD && corrected_holds(d, len)) {
-        delivered = 1;
+      if (delivered) {
         deliver(d, len);
-        break;
-      }
-      if (alt >= 0 && end == alt + RBX1_FRAME_OVERHEAD && relength_holds(d, (uint8_t)alt)) {
-        delivered = 1;
-        deliver(d, (uint8_t)alt);
         break;
       }
     }
     if (delivered) continue; /* the next candidate, if any, is in buf */
-    if (d->n < last) return;
+    if (d->n < d->last) return;
     {
-      uint8_t synced = d->buf[0] == RBX1_SYNC; /* else the byte after a frame, taken for a damaged SYNC: silent */
-      decoder_shift(d, 1);                     /* resume hunting at the byte after the rejected SYNC */
+      uint8_t synced = d->buf[0] == RBX1_SYNC, seq = d->buf[2]; /* not synced: the byte after a frame, taken for a
+                                                                  * damaged SYNC, dropped silently */
+      decoder_shift(d, 1); /* resume hunting at the byte after the rejected SYNC */
       if (synced && d->on_reject)
         d->on_reject(d->ctx, len <= RBX1_MAX_PAYLOAD ? RBX1_BAD_CRC : RBX1_BAD_LENGTH, seq, 1);
     }
@@ -281,8 +279,6 @@ void rbx1_decoder_feed(rbx1_decoder *d, const uint8_t *data, size_t n) {
 
 int rbx1_decoder_reset(rbx1_decoder *d) {
   int pending = rbx1_decoder_pending(d);
-  d->skip = 0; /* parity that never came: a peer of version 4 sends none */
-  d->after = 0;
   /* Every byte held is older than the timeout: drop the candidate's SYNC and scan the rest again, as after a
    * rejection, so a whole frame hidden inside is still delivered; a new candidate left incomplete is as stale, and
    * goes the same way. */
@@ -290,6 +286,8 @@ int rbx1_decoder_reset(rbx1_decoder *d) {
     decoder_shift(d, 1);
     decoder_settle(d);
   }
+  d->skip = 0; /* parity that never came (a peer of version 4 sends none), also of a frame the rescan delivered */
+  d->after = 0;
   return pending;
 }
 

@@ -59,6 +59,8 @@ typedef struct {
   uint8_t tried; /* the candidate's readings that end at or before this many bytes have been tried */
   uint8_t skip;  /* parity bytes still to come of a frame delivered before them */
   uint8_t after; /* 1: the next byte follows a delivered frame, and starts a candidate whatever its value */
+  uint8_t alt_end, last; /* the candidate's reading with its TYPE's length ends at alt_end bytes (0: none); the
+                          * last of its readings at last (0: none, LEN above 58 and TYPE of no fixed length) */
   rbx1_on_frame on_frame;
   rbx1_on_reject on_reject;
   void *ctx;

@@ -102,12 +102,12 @@ class Decoder:
         """Inter-byte timeout: drops the partial frame's SYNC and rescans the bytes after it. Returns (pending,
         items): whether a frame was pending, and the Frames/Rejects the rescan completed (see PROTOCOL.md)."""
         pending = self.pending()
-        self.skip = 0  # parity that never came: a peer of version 4 sends none
-        self.after = False
         out = []
         while self.buf:
             self._shift(1)
             self._settle(out)
+        self.skip = 0  # parity that never came (a peer of version 4 sends none), also of a frame the rescan delivered
+        self.after = False
         return pending, out
 
     def _shift(self, start):
