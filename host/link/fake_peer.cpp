@@ -252,7 +252,11 @@ uint8_t FakePeer::execute(const rbx1_frame& f, uint8_t* resp) {
 void FakePeer::respond(uint8_t seq, uint8_t type, const uint8_t* payload, uint8_t len, bool corrupt) {
   uint8_t frame[RBX1_MAX_FRAME];
   size_t n = rbx1_frame_encode(frame, sizeof frame, seq, type, payload, len);
-  if (corrupt) frame[n - 1] ^= 0x5A;
+  // Two CRC bytes damaged: more than the parity corrects (one byte), so the frame is rejected, not repaired.
+  if (corrupt) {
+    frame[n - RBX1_FEC_BYTES - 1] ^= 0x5A;
+    frame[n - RBX1_FEC_BYTES - 2] ^= 0x5A;
+  }
   std::vector<uint8_t> bytes(frame, frame + n);
   if (delay_type >= 0 && RBX1_RESPONSE(static_cast<uint8_t>(delay_type)) == type && delay_ms > 0) {
     std::lock_guard<std::mutex> lock(mu_);
