@@ -226,7 +226,8 @@ TEST_F(Fw, CorruptFrameIsNakedAndNotExecuted) {
   ready();
   std::vector<uint8_t> p = move_payload({500, 0, 0, 0, 0, 0});
   std::vector<uint8_t> f = encode(7, RBX1_MSG_MOVE, p.data(), (uint8_t)p.size());
-  f[6] ^= 0x10;  // a payload bit
+  f[6] ^= 0x10;  // a payload bit and a CRC bit: two damaged bytes, more than the parity corrects (one)
+  f[f.size() - RBX1_FEC_BYTES - 1] ^= 0x01;
   Reply r = exchange(f);
   ASSERT_TRUE(r.got);
   EXPECT_EQ(r.type, RBX1_MSG_NAK);
@@ -238,6 +239,29 @@ TEST_F(Fw, CorruptFrameIsNakedAndNotExecuted) {
   EXPECT_EQ(s.queue_free, 16);
   EXPECT_EQ(s.moves_done, 0);
   EXPECT_EQ(sim::board().pulses[0], 0u);
+}
+
+// Version 5's parity: one damaged byte of a frame, LEN included, is corrected, and the request runs once.
+TEST_F(Fw, OneDamagedByteIsCorrectedAndExecutedOnce) {
+  ready();
+  int32_t target = 0;
+  for (size_t at : {size_t(1), size_t(3), size_t(6), size_t(30), size_t(35)}) {  // LEN, TYPE, payload, CRC, parity
+    SCOPED_TRACE("byte " + std::to_string(at) + " damaged");
+    target += 100;
+    std::vector<uint8_t> p = move_payload({target, 0, 0, 0, 0, 0});
+    uint8_t seq = take_seq();
+    std::vector<uint8_t> f = encode(seq, RBX1_MSG_MOVE, p.data(), (uint8_t)p.size());
+    ASSERT_LT(at, f.size());
+    f[at] ^= 0x24;
+    send_run(f);
+    ASSERT_EQ(frames_.size(), 1u);
+    EXPECT_EQ(frames_[0].type, RBX1_RESPONSE(RBX1_MSG_MOVE));
+    EXPECT_EQ(frames_[0].seq, seq);
+    EXPECT_EQ(frames_[0].payload[0], RBX1_OK);
+    run_until_idle();
+    EXPECT_EQ(status().position[0], target);
+  }
+  EXPECT_EQ(status().moves_accepted, 5);
 }
 
 TEST_F(Fw, GarbageIsIgnoredAndAFrameInsideItIsFound) {
