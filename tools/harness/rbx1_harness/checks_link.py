@@ -119,15 +119,36 @@ def corrupt_frame_nak(b):
     before = b.status()
     # The next SEQ, not consumed: a frame the firmware rejects takes no place in its order.
     seq, wire = b.frame(MsgType.MOVE, seq=b.link.seq, target=[100] * 6, duration_ms=0)
-    bad = bytearray(wire)
-    bad[6] ^= 0x01  # a payload bit: the CRC no longer matches
-    ev = b.exchange_raw(bytes(bad), until=lambda e: naks(e))
-    expect(naks(ev) == [(seq, Status.BAD_CRC)], f"expected NAK BAD_CRC seq {seq}, got {ev}")
-    bad = bytearray(wire)
-    bad[-1] ^= 0xFF  # the CRC itself
-    ev = b.exchange_raw(bytes(bad), until=lambda e: naks(e))
-    expect(naks(ev) == [(seq, Status.BAD_CRC)], f"expected NAK BAD_CRC seq {seq}, got {ev}")
+    # Two damaged bytes each time: the parity corrects one (damaged_byte_corrected), so two are what a frame the
+    # firmware must reject takes.
+    crc = len(wire) - frame.OVERHEAD + 4  # the first CRC byte
+    for what, damage in (("a payload bit and a CRC bit", ((6, 0x01), (crc + 1, 0x80))),
+                         ("two CRC bytes", ((crc, 0xFF), (crc + 3, 0xFF)))):
+        bad = bytearray(wire)
+        for i, x in damage:
+            bad[i] ^= x
+        ev = b.exchange_raw(bytes(bad), until=lambda e: naks(e))
+        expect(naks(ev) == [(seq, Status.BAD_CRC)], f"{what}: expected NAK BAD_CRC seq {seq}, got {ev}")
     unchanged(b, before)
+
+
+@check("damaged_byte_corrected")
+def damaged_byte_corrected(b):
+    # Version 5's parity (PROTOCOL.md "Frame"): any one damaged byte after SYNC, LEN included, is corrected and the
+    # request runs, once.
+    before = b.status()
+    n = len(frame.encode(0, MsgType.MOVE, bytes(messages.request_len(MsgType.MOVE))))
+    for k, at in enumerate((1, 2, 3, 9, n - 5, n - 1)):  # LEN, SEQ, TYPE, payload, CRC, parity
+        seq, wire = b.frame(MsgType.MOVE, target=[10 * (k + 1), 0, 0, 0, 0, 0], duration_ms=0)
+        bad = bytearray(wire)
+        bad[at] ^= 0x5C
+        ev = b.exchange_raw(bytes(bad), until=lambda e: naks(e) or responses(e, MsgType.MOVE, seq))
+        r = responses(ev, MsgType.MOVE, seq)
+        expect(len(r) == 1 and r[0].payload[0] == Status.OK and not naks(ev),
+               f"byte {at} of {n} damaged: expected the MOVE accepted, got {ev}")
+    s = b.wait_idle()
+    expect(s["moves_accepted"] == before["moves_accepted"] + 6, f"expected 6 MOVEs accepted once each: {brief(s)}")
+    expect(s["position"][0] == 60, f"position {s['position']}, expected joint 1 at 60")
 
 
 @check("crc16_blind_corruption_nak")
@@ -140,7 +161,7 @@ def crc16_blind_corruption_nak(b):
     bad = bytearray(wire)
     for i, x in enumerate(b"\x01\x10\x21"):
         bad[4 + i] ^= x
-    body = slice(1, len(wire) - 4)
+    body = slice(1, len(wire) - frame.OVERHEAD + 4)  # LEN..PAYLOAD
     expect(binascii.crc_hqx(bytes(bad[body]), 0xFFFF) == binascii.crc_hqx(wire[body], 0xFFFF), "not a CRC-16 collision")
     ev = b.exchange_raw(bytes(bad), until=lambda e: naks(e) or responses(e, MsgType.MOVE, seq))
     expect(naks(ev) == [(seq, Status.BAD_CRC)], f"expected NAK BAD_CRC seq {seq}, got {ev}")
@@ -148,7 +169,7 @@ def crc16_blind_corruption_nak(b):
     expect(s["moves_accepted"] == before["moves_accepted"], f"the corrupt MOVE was accepted: {brief(s)}")
     unchanged(b, before)
     seq = b.next_seq()
-    wire = frame.encode(seq, MsgType.MOVE, wire[4:-4])
+    wire = frame.encode(seq, MsgType.MOVE, wire[body][3:])
     ev = b.exchange_raw(wire, until=lambda e: responses(e, MsgType.MOVE, seq))
     r = responses(ev, MsgType.MOVE, seq)
     expect(len(r) == 1 and r[0].payload[0] == Status.OK, f"the MOVE as sent was not accepted: {ev}")
@@ -160,8 +181,16 @@ def crc16_blind_corruption_nak(b):
 def length_over_max_nak(b):
     before = b.status()
     seq = b.link.seq  # rejected frames take no place in the order
-    ev = b.exchange_raw(bytes([frame.SYNC, frame.MAX_PAYLOAD + 1, seq, MsgType.MOVE]), until=lambda e: naks(e))
-    expect([r for _, r in naks(ev)] == [Status.BAD_LENGTH], f"LEN 59: expected NAK BAD_LENGTH, got {ev}")
+    # A TYPE of no fixed payload length: nothing can repair LEN, so the rejection comes as soon as TYPE is in.
+    ev = b.exchange_raw(bytes([frame.SYNC, frame.MAX_PAYLOAD + 1, seq, 0x55]), until=lambda e: naks(e))
+    expect([r for _, r in naks(ev)] == [Status.BAD_LENGTH], f"LEN 59, TYPE 0x55: expected NAK BAD_LENGTH, got {ev}")
+    # A MOVE whose LEN reads 59 and one more byte damaged: the reading with MOVE's own length fails too.
+    _, wire = b.frame(MsgType.MOVE, seq=seq, target=[100] * 6, duration_ms=0)
+    bad = bytearray(wire)
+    bad[1] = frame.MAX_PAYLOAD + 1
+    bad[8] ^= 0x01
+    ev = b.exchange_raw(bytes(bad), until=lambda e: naks(e))
+    expect([r for _, r in naks(ev)] == [Status.BAD_LENGTH], f"MOVE with LEN 59: expected NAK BAD_LENGTH, got {ev}")
     unchanged(b, before)
 
 
