@@ -11,13 +11,13 @@ board) the proxy reopens the firmware's path as soon as it is back.
 import os
 import random
 import select
+import sys
 import threading
 import time
 import tty
 
-SYNC = 0xA5
-MAX_PAYLOAD = 58
-OVERHEAD = 8  # SYNC LEN SEQ TYPE and the 4 CRC bytes (PROTOCOL.md)
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "protocol", "python"))
+from rbx1proto.frame import MAX_PAYLOAD, OVERHEAD, SYNC  # noqa: E402  (the framing of the current version)
 
 
 class Direction:
