@@ -257,6 +257,7 @@ void FakePeer::respond(uint8_t seq, uint8_t type, const uint8_t* payload, uint8_
     frame[n - RBX1_FEC_BYTES - 1] ^= 0x5A;
     frame[n - RBX1_FEC_BYTES - 2] ^= 0x5A;
   }
+  if (v4_frames) n -= RBX1_FEC_BYTES;
   std::vector<uint8_t> bytes(frame, frame + n);
   if (delay_type >= 0 && RBX1_RESPONSE(static_cast<uint8_t>(delay_type)) == type && delay_ms > 0) {
     std::lock_guard<std::mutex> lock(mu_);

@@ -42,6 +42,7 @@ class FakePeer {
   std::atomic<int> delay_type{-1};     // hold responses of this type ...
   std::atomic<int> delay_ms{0};        // ... for this long (the peer keeps reading meanwhile)
   std::atomic<uint8_t> proto_version{RBX1_PROTO_VERSION};
+  std::atomic<bool> v4_frames{false};  // send frames as protocol version 4 did: no parity bytes after the CRC
   std::atomic<uint8_t> last_seq{41};   // reported by HELLO until a request is executed
   std::atomic<uint8_t> window_size{RBX1_WINDOW};  // HELLO's window
   // After the next executed request of this type, execute silence_after_count more new requests (retransmissions

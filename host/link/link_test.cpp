@@ -586,6 +586,24 @@ TEST(Link, VersionMismatchIsAClearError) {
   EXPECT_FALSE(link.connected());
 }
 
+// A board still on protocol version 4 reads our frames (its CRC holds where it looks; it hunts past the parity) and
+// answers HELLO BAD_VERSION, version 4, in frames without parity: read at their CRC, the error names both versions
+// and the fix.
+TEST(Link, Version4FirmwareIsAClearError) {
+  FakePeer peer;
+  peer.proto_version = 4;
+  peer.v4_frames = true;
+  Link link;
+  std::string error;
+  EXPECT_EQ(link.open(peer.slave_path(), 115200, error), -EPROTO);
+  const std::string& port = peer.slave_path();
+  EXPECT_EQ(error, port + ": firmware speaks protocol version 4, this host " + std::to_string(RBX1_PROTO_VERSION) +
+                       "; flash the matching firmware: rbx1-flash " + port + " (from a checkout: make flash PORT=" +
+                       port + ")");
+  EXPECT_EQ(peer.executed(RBX1_MSG_HELLO), 1);  // answered at once: no HELLO repeated, no bootloader wait
+  EXPECT_FALSE(link.connected());
+}
+
 TEST(Link, MissingPortNamesThePath) {
   Link link;
   std::string error;
