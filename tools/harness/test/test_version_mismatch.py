@@ -1,7 +1,8 @@
 """test_version_mismatch.py - a firmware of another protocol version (a fake on a pty that answers HELLO as a
-firmware speaking version PROTO_VERSION + 1 does: BAD_VERSION, its own version; and one speaking version 3, whose
-CRC-16 frames NAK our CRC-32 ones) meets the harness and rbx1d: both name the two versions and the command that
-fixes it. Env: RBX1_SOURCE_DIR, RBX1_BIN_DIR."""
+firmware speaking version PROTO_VERSION + 1 does: BAD_VERSION, its own version; one speaking version 4, which
+reads our frames and answers in frames without parity; and one speaking version 3, whose CRC-16 frames NAK our
+CRC-32 ones) meets the harness and rbx1d: both name the two versions and the command that fixes it.
+Env: RBX1_SOURCE_DIR, RBX1_BIN_DIR."""
 import binascii
 import json
 import os
@@ -11,6 +12,7 @@ import sys
 import threading
 import time
 import tty
+import zlib
 
 import pytest
 
@@ -24,7 +26,9 @@ THEIRS = messages.PROTO_VERSION + 1
 
 
 class OtherVersionFirmware:
-    """Answers every HELLO with BAD_VERSION and version THEIRS; stays silent to everything else."""
+    """Answers every HELLO with BAD_VERSION and version self.version (THEIRS); stays silent to everything else."""
+
+    version = THEIRS
 
     def __init__(self):
         self.master, self.slave = os.openpty()
@@ -44,10 +48,13 @@ class OtherVersionFirmware:
             for f in decoder.feed(os.read(self.master, 256)):
                 if getattr(f, "type", None) == MsgType.HELLO:
                     self.hellos += 1
-                    payload = messages.pack_response(
-                        MsgType.HELLO, status=Status.BAD_VERSION, proto_version=THEIRS, fw_major=9, fw_minor=0,
-                        fw_patch=0, joints=6, queue_size=16, capabilities=0, last_seq=0, window=8)
-                    os.write(self.master, frame.encode(f.seq, MsgType.HELLO | 0x80, payload))
+                    os.write(self.master, self.hello_answer(f.seq))
+
+    def hello_answer(self, seq):
+        payload = messages.pack_response(
+            MsgType.HELLO, status=Status.BAD_VERSION, proto_version=self.version, fw_major=9, fw_minor=0,
+            fw_patch=0, joints=6, queue_size=16, capabilities=0, last_seq=0, window=8)
+        return frame.encode(seq, MsgType.HELLO | 0x80, payload)
 
     def close(self):
         os.write(self.stop_w, b"x")
@@ -82,9 +89,53 @@ class Version3Firmware(OtherVersionFirmware):
                 del buf[:1]
 
 
+class Version4Firmware(OtherVersionFirmware):
+    """Frames as protocol version 4 did (CRC-32, 8 bytes, no parity): after a SYNC it reads LEN+7 bytes, finds our
+    CRC where it looks (our parity follows it, and is hunted past), answers HELLO BAD_VERSION with version 4 in a
+    frame without parity, NAKs a bad CRC BAD_CRC and hunts again after that SYNC; a partial frame is dropped after
+    50 ms of silence."""
+
+    version = 4
+
+    def _run(self):
+        buf = bytearray()
+        while True:
+            ready, _, _ = select.select([self.master, self.stop_r], [], [], 0.05)
+            if self.stop_r in ready:
+                return
+            if not ready:  # the inter-byte timeout: the partial frame's SYNC goes, the rest is scanned again
+                del buf[:1]
+            else:
+                buf += os.read(self.master, 256)
+            while True:
+                i = buf.find(frame.SYNC)
+                del buf[:i if i >= 0 else len(buf)]
+                if len(buf) < 3 or len(buf) < buf[1] + 8:
+                    break
+                n, seq = buf[1], buf[2]
+                if n <= frame.MAX_PAYLOAD and zlib.crc32(bytes(buf[1:n + 4])) == int.from_bytes(buf[n + 4:n + 8],
+                                                                                                  "little"):
+                    if buf[3] == MsgType.HELLO:
+                        self.hellos += 1
+                        os.write(self.master, self.hello_answer(seq)[:-frame.FEC_BYTES])
+                    del buf[:n + 8]
+                    continue
+                body = bytes([1, seq, MsgType.NAK, Status.BAD_CRC])
+                crc = zlib.crc32(body)
+                os.write(self.master, bytes([frame.SYNC]) + body + crc.to_bytes(4, "little"))
+                del buf[:1]
+
+
 @pytest.fixture
 def firmware():
     fw = OtherVersionFirmware()
+    yield fw
+    fw.close()
+
+
+@pytest.fixture
+def firmware_v4():
+    fw = Version4Firmware()
     yield fw
     fw.close()
 
@@ -155,5 +206,24 @@ def test_daemon_names_version_3_and_the_fix(firmware_v3, tmp_path):
     want = (f"{port}: firmware speaks protocol version 3 (CRC-16 frames: it NAKs every frame of ours), this host "
             f"{messages.PROTO_VERSION}; flash the matching firmware: rbx1-flash {port} (from a checkout: make flash "
             f"PORT={port})")
+    assert error == want, error
+    assert want in stderr
+
+
+def test_harness_names_version_4_and_the_fix(firmware_v4):
+    r = subprocess.run([sys.executable, os.path.join(SRC, "tools", "rbx1-harness"), "--port", firmware_v4.port],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1 and firmware_v4.hellos >= 1, r.stdout + r.stderr
+    port = firmware_v4.port
+    want = (f"FAIL  connect: {port}: the firmware speaks protocol version 4, this harness {messages.PROTO_VERSION}: "
+            f"flash the matching firmware: make flash PORT={port} (installed: rbx1-flash {port})")
+    assert want in r.stdout.splitlines(), r.stdout
+
+
+def test_daemon_names_version_4_and_the_fix(firmware_v4, tmp_path):
+    error, stderr = daemon_link_error(firmware_v4.port, tmp_path)
+    port = firmware_v4.port
+    want = (f"{port}: firmware speaks protocol version 4, this host {messages.PROTO_VERSION}; flash the matching "
+            f"firmware: rbx1-flash {port} (from a checkout: make flash PORT={port})")
     assert error == want, error
     assert want in stderr
