@@ -82,7 +82,7 @@ class GlitchPeer {
 
 // 80 ms of silence after the fragment (more than the 50 ms inter-byte timeout): the link has dropped the fragment
 // when the real response starts, so the first transmission is answered. A link that kept the fragment would
-// swallow the response into its 66-byte candidate frame, wait for bytes that never come, and retransmit after its
+// swallow the response into its 68-byte candidate frame, wait for bytes that never come, and retransmit after its
 // 1 s timeout.
 TEST(LinkPartialFrame, AFragmentIsDroppedAfterTheInterByteTimeout) {
   int sv[2];
