@@ -41,6 +41,25 @@ TEST_F(Fw, HelloReportsVersionsSizesAndCapabilities) {
   EXPECT_EQ(h.proto_version, RBX1_PROTO_VERSION);
 }
 
+// A host of protocol version 4 sends frames without parity: the firmware reads them at their CRC and answers its
+// HELLO BAD_VERSION with version 5, each time it asks (its next HELLO after its 100 ms timeout).
+TEST_F(Fw, Version4HostIsAnsweredBadVersion) {
+  for (uint8_t seq = 0; seq < 2; seq++) {
+    uint8_t p[1] = {4};
+    std::vector<uint8_t> f = encode(seq, RBX1_MSG_HELLO, p, 1);
+    f.resize(f.size() - RBX1_FEC_BYTES);
+    Reply r = exchange(f);
+    ASSERT_TRUE(r.got) << "HELLO " << int(seq);
+    EXPECT_EQ(r.type, RBX1_RESPONSE(RBX1_MSG_HELLO));
+    EXPECT_EQ(r.seq, seq);
+    rbx1_hello_resp h{};
+    ASSERT_EQ(rbx1_hello_resp_unpack(&h, r.payload.data(), (uint8_t)r.payload.size()), RBX1_OK);
+    EXPECT_EQ(h.status, RBX1_BAD_VERSION);
+    EXPECT_EQ(h.proto_version, RBX1_PROTO_VERSION);
+    run_ms(100);
+  }
+}
+
 TEST_F(Fw, DuplicateMoveIsAnsweredAgainButExecutedOnce) {
   ready();
   std::vector<uint8_t> p = move_payload({500, 0, 0, 0, 0, 0});
