@@ -51,6 +51,8 @@ void Link::set_timing(int timeout_ms, int retries) {
 
 void Link::set_window(int max_in_flight) { max_window_ = std::max(1, max_in_flight); }
 
+void Link::set_ahead(int frames) { ahead_ = std::max(0, frames); }
+
 int Link::window() const {
   std::lock_guard<std::mutex> lock(state_mu_);
   if (!hello_.window) return 1;
@@ -291,6 +293,7 @@ void Link::attribute(Waiter* w, bool refused) {
   if (w->txs.empty()) return;  // a single request (transact): its own rule
   ++w->events;
   uint32_t copy = w->txs[std::min<size_t>(w->events, w->txs.size()) - 1];
+  seen_tx_ = std::max(seen_tx_, copy);
   if (refused && copy == w->txs.back()) w->resend = true;
   if (w->held) w->resend = false;
   for (Waiter* o : waiting_)
@@ -330,6 +333,7 @@ void Link::on_frame(void* ctx, const rbx1_frame* f) {
       auto it = std::find_if(probes.begin(), probes.end(), [&](const auto& p) { return p.first == f->seq; });
       if (it != probes.end()) {
         const uint32_t copy = it->second;
+        self->seen_tx_ = std::max(self->seen_tx_, copy);
         probes.erase(probes.begin(), it + 1);
         for (Waiter* o : self->waiting_)
           if (!o->done && !o->held && !o->txs.empty() && o->txs.back() < copy) o->resend = true;
@@ -593,6 +597,15 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
   };
   std::unique_lock<std::mutex> lock(state_mu_);
   probes_.clear();
+  seen_tx_ = 0;
+  // New requests go out as answers come back (PROTOCOL.md "Pacing"): at most `ahead` copies beyond the latest one an
+  // answer or NAK was about, so a resend waits behind a few frames, not the whole window.
+  const uint32_t ahead = static_cast<uint32_t>(ahead_.load());
+  auto room = [&] {
+    size_t r = std::min(n, base + win) - next;
+    if (win > 1 && ahead) r = std::min<size_t>(r, tx - seen_tx_ >= ahead ? 0 : ahead - (tx - seen_tx_));
+    return r;
+  };
   int tries = 0, result = 0;
   int silences = 0;  // timeouts since the oldest unanswered request changed
   Clock::time_point oldest_since = Clock::now();
@@ -609,9 +622,9 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
     return std::min(late, std::max(due[i], oldest_since) + margin);
   };
   while (base < n) {
-    if (next < n && next - base < win) {  // fill the window
+    if (size_t k = room(); k > 0) {
       std::vector<size_t> fresh;
-      for (; next < n && next - base < win; ++next) {
+      for (; k > 0; --k, ++next) {
         fresh.push_back(next);
         waiting_.push_back(&ws[next]);
       }
@@ -626,7 +639,7 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
         if (!ws[i].done && (ws[i].resend || ws[i].nak)) return true;
       return false;
     };
-    state_cv_.wait_until(lock, until, [&] { return ws[base].done || pending() || !connected_; });
+    state_cv_.wait_until(lock, until, [&] { return ws[base].done || pending() || !connected_ || room() > 0; });
     while (base < next && ws[base].done) {
       waiting_.erase(std::find(waiting_.begin(), waiting_.end(), &ws[base]));
       last_done_ = Clock::now();

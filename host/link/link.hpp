@@ -104,6 +104,10 @@ class Link {
   // Requests in flight in stream(): min(set_window(), the firmware's HELLO window); 1 before a HELLO.
   int window() const;
   void set_window(int max_in_flight);
+  // stream() writes a new request only while fewer than `frames` copies are on the line beyond the latest one an
+  // answer or NAK was about (PROTOCOL.md "Pacing"; default kAhead); 0 writes the whole window at once.
+  void set_ahead(int frames);
+  static constexpr int kAhead = 4;
 
   // Typed helpers, one per message.
   int hello(rbx1_hello_resp& out);
@@ -175,7 +179,7 @@ class Link {
 
   std::string path_, name_;
   int baud_ = 0;  // 0 when opened with open_fd (no termios, no reopen)
-  std::atomic<int> timeout_ms_{100}, retries_{5}, boot_wait_ms_{2500}, max_window_{8};
+  std::atomic<int> timeout_ms_{100}, retries_{5}, boot_wait_ms_{2500}, max_window_{8}, ahead_{kAhead};
 
   std::mutex request_mu_;  // one request() or stream() at a time
   std::mutex estop_mu_;    // one e-stop exchange at a time
@@ -191,6 +195,9 @@ class Link {
   std::vector<Waiter*> waiting_;     // the requests in flight (under state_mu_)
   // stream(): (SEQ, copy number) of the probes written whose NAK has not come, oldest first (under state_mu_)
   std::deque<std::pair<uint8_t, uint32_t>> probes_;
+  // stream(): the latest copy an answer or NAK was about; the copies written after it are still on the line
+  // (PROTOCOL.md "Pacing"; under state_mu_)
+  uint32_t seen_tx_ = 0;
   Waiter* estop_waiting_ = nullptr;  // the outstanding e-stop (under state_mu_)
   rbx1_decoder decoder_;   // reader thread only
   std::vector<uint8_t> recent_;            // reader thread only: bytes received during the handshake

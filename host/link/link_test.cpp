@@ -257,6 +257,7 @@ TEST_F(LinkTest, StreamKeepsTheWindowInFlight) {
 
 TEST_F(LinkTest, StreamHoldsTheFramesAfterALostRequest) {
   link.set_timing(4000, 5);  // no timeout (it would send the held ones again), however loaded the machine
+  link.set_ahead(0);         // the whole window written at once (no pacing): the 7 after the lost one are held
   peer.drop_next = 1;  // the stream's first frame vanishes: the peer holds the ones after it until it comes again
   stream_all_ok(20, 0);
   std::vector<int32_t> in_order(20);
@@ -300,6 +301,7 @@ TEST_F(LinkTest, StreamResendsOnlyWhatTheAnswersShowLost) {
   EXPECT_EQ(delta().retransmissions, 1u);
   EXPECT_EQ(delta().timeouts, 0u);
   peer.drop_next = 1;  // the next stream's first frame vanishes: its 7 followers in the window are held
+  link.set_ahead(0);   // (the whole window written at once, no pacing)
   stream_all_ok(12, 100);
   EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 24);
   EXPECT_EQ(peer.held(), 7);
@@ -313,6 +315,7 @@ TEST_F(LinkTest, StreamLostResendIsSentAgainAfterTheProbeNotTheTimeout) {
   // probe written behind that resend is answered after it, which shows it lost, and it goes again at once. Without
   // the probe only the timeout (2 s here) would send it again: the count of timeouts tells.
   link.set_timing(4000, 5);  // a stream's deadline: a quarter of it (1 s) after the answer is due
+  link.set_ahead(0);  // the whole window at once: nothing new can follow the resend, only the probe
   const int cached0 = peer.cached_replies();  // a HELLO sent again in SetUp (a loaded machine) is answered too
   peer.drop_seq = link.next_seq();
   peer.drop_seq_times = 2;
@@ -327,6 +330,36 @@ TEST_F(LinkTest, StreamLostResendIsSentAgainAfterTheProbeNotTheTimeout) {
   EXPECT_EQ(delta().timeouts, 0u);
   EXPECT_EQ(delta().retransmissions, 2u);  // the first request's two resends, nothing else
   EXPECT_GE(delta().probes, 2u);           // behind each resend (and behind the stream's last request)
+}
+
+TEST_F(LinkTest, StreamPacedHoldsFewerFollowersOfALostRequest) {
+  // Paced (PROTOCOL.md "Pacing"): no more than kAhead copies on the line beyond the latest one an answer or NAK was
+  // about, so a lost request has kAhead - 1 followers held when its resend goes out, not the window's 7.
+  link.set_timing(4000, 5);  // no timeout in this test, however loaded the machine
+  peer.drop_next = 1;
+  stream_all_ok(20, 0);
+  std::vector<int32_t> in_order(20);
+  for (int i = 0; i < 20; ++i) in_order[i] = i;
+  EXPECT_EQ(peer.move_targets(), in_order);  // nothing lost, nothing twice, in order
+  EXPECT_EQ(peer.held(), rbx1::link::Link::kAhead - 1);
+  EXPECT_EQ(peer.refused(), 0);
+  EXPECT_EQ(delta().retransmissions, 1u);
+  EXPECT_EQ(delta().timeouts, 0u);
+}
+
+TEST_F(LinkTest, StreamPacedLostResendIsShownByTheRequestsAfterIt) {
+  // Paced, new requests follow a resend: their NAKs (HELD) come after it, so a lost resend is sent again at once,
+  // with neither a probe behind it nor a timeout.
+  link.set_timing(4000, 5);
+  peer.drop_seq = link.next_seq();
+  peer.drop_seq_times = 2;
+  stream_all_ok(20, 0);
+  std::vector<int32_t> in_order(20);
+  for (int i = 0; i < 20; ++i) in_order[i] = i;
+  EXPECT_EQ(peer.move_targets(), in_order);
+  EXPECT_EQ(delta().timeouts, 0u);
+  EXPECT_EQ(delta().retransmissions, 2u);
+  EXPECT_EQ(delta().probes, 1u);  // only behind the stream's last request
 }
 
 TEST_F(LinkTest, StreamLostLastRequestIsSentAgainAfterTheProbe) {
@@ -381,6 +414,7 @@ TEST_F(LinkTest, StreamLinkDownSaysWhichWereAnswered) {
   // Down after 3 silences (125, 250 and 500 ms past the answers' due times on the line model, PROTOCOL.md
   // "Timeout"): the peer's three answers come well before that.
   link.set_timing(500, 2);
+  link.set_ahead(0);  // the whole window written at once: the count of frames written below
   peer.silence_after_type = RBX1_MSG_MOVE;  // three MOVEs run and are answered, then the line dies
   peer.silence_after_count = 2;
   std::vector<rbx1_move_resp> out;
