@@ -264,6 +264,11 @@ void FakePeer::respond(uint8_t seq, uint8_t type, const uint8_t* payload, uint8_
     pending_.push_back({Clock::now() + std::chrono::milliseconds(delay_ms), bytes, type});
     return;
   }
+  if (delay_all_ms > 0) {  // due times grow with the order of the frames: they go out in that order
+    std::lock_guard<std::mutex> lock(mu_);
+    pending_.push_back({Clock::now() + std::chrono::milliseconds(delay_all_ms), bytes, type});
+    return;
+  }
   send(bytes, type);
 }
 

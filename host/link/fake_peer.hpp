@@ -41,6 +41,7 @@ class FakePeer {
   std::atomic<bool> stale_first{false};  // before each response, send one with another SEQ
   std::atomic<int> delay_type{-1};     // hold responses of this type ...
   std::atomic<int> delay_ms{0};        // ... for this long (the peer keeps reading meanwhile)
+  std::atomic<int> delay_all_ms{0};    // every answer and NAK this late, in order (a slow firmware)
   std::atomic<uint8_t> proto_version{RBX1_PROTO_VERSION};
   std::atomic<bool> v4_frames{false};  // send frames as protocol version 4 did: no parity bytes after the CRC
   std::atomic<uint8_t> last_seq{41};   // reported by HELLO until a request is executed

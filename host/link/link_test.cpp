@@ -347,6 +347,27 @@ TEST_F(LinkTest, StreamPacedHoldsFewerFollowersOfALostRequest) {
   EXPECT_EQ(delta().timeouts, 0u);
 }
 
+TEST_F(LinkTest, StreamPacedGoesOnWhenLateCopiesAnswersAreStale) {
+  // Every answer comes late, after the timeout's resend: the late answer is taken and the resend's answer (from
+  // memory) is stale. Nothing is in flight then, so what was left on the line must not hold back the rest: before
+  // this rule the stream spun forever with every request written answered and no room to write more.
+  link.set_timing(400, 5);  // a stream's deadline: 100 ms after the answer is due, doubled by each silence
+  link.set_ahead(1);
+  peer.delay_all_ms = 150;  // answers and NAKs late, in order
+  auto done = std::async(std::launch::async, [&] {
+    std::vector<rbx1_move_resp> out;
+    std::vector<bool> answered;
+    return link.move_stream(move_batch(3, 0), out, answered);
+  });
+  if (done.wait_for(std::chrono::seconds(20)) != std::future_status::ready) {
+    ADD_FAILURE() << "the stream stopped writing with nothing in flight";
+    std::_Exit(1);  // the stream's thread spins on: nothing else can end this test
+  }
+  EXPECT_EQ(done.get(), 0);
+  EXPECT_EQ(peer.executed(RBX1_MSG_MOVE), 3);
+  EXPECT_GE(delta().timeouts, 1u);
+}
+
 TEST_F(LinkTest, StreamPacedLostResendIsShownByTheRequestsAfterIt) {
   // Paced, new requests follow a resend: their NAKs (HELD) come after it, so a lost resend is sent again at once,
   // with neither a probe behind it nor a timeout.

@@ -506,6 +506,24 @@ def test_stream_lost_resend_is_sent_again_after_the_probe_not_the_timeout(pty_pa
     assert link.probes >= 2  # behind each resend (and behind the stream's last request)
 
 
+def test_stream_paced_goes_on_when_late_copies_answers_are_stale(pty_pair):
+    # The first answer comes late, after the timeout's resend: the late answer is taken, and the resend's answer
+    # (from memory) is stale. Nothing is in flight then, so what was left on the line must not hold back the rest:
+    # before this rule the stream spun forever with every request written answered and no room to write more.
+    link, peer = pty_pair
+    link.timeout = 0.4
+    link.ahead = 1
+    link.hello()
+    peer.hold_until_copy = True
+    result = []
+    t = threading.Thread(target=lambda: result.append(stream_moves(link, 5)), daemon=True)
+    t.start()
+    t.join(10)
+    assert not t.is_alive(), "the stream stopped writing with nothing in flight"
+    assert [r["status"] for r in result[0]] == [Status.OK] * 5
+    assert peer.moves == list(range(5)) and link.timeouts == 1
+
+
 def test_stream_paced_lost_resend_is_shown_by_the_requests_after_it(pty_pair):
     # Paced, new requests follow a resend: their NAKs (HELD) come after it, so a lost resend is sent again at once,
     # with neither a probe nor a timeout.
