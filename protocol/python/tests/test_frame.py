@@ -1,12 +1,17 @@
 """test_frame.py - Python framing (CRC, encode, decoder) against the shared vectors, in any chunking."""
 import binascii
+import os
 import random
+import sys
 
 import pytest
-from conftest import load_vectors
+from conftest import PROTOCOL_DIR, load_vectors
 
 from rbx1proto import frame
 from rbx1proto.messages import Status
+
+sys.path.insert(0, os.path.join(PROTOCOL_DIR, "vectors"))
+from make_vectors import evaluate  # noqa: E402  (bit by bit, independent of frame.py's shift-and-XOR)
 
 STREAMS = load_vectors("streams.json")
 MESSAGES = load_vectors("messages.json")
@@ -138,23 +143,6 @@ def test_crc16_collision_is_rejected():
 # ---- Version 5: Reed-Solomon parity (fec_parity, fec_locate) and the decoder's corrected readings ----
 
 FEC = load_vectors("fec.json")
-
-
-def gf_mul(a, b):
-    """a * b in GF(2^8) mod 0x11D, bit by bit: an evaluation independent of frame.py's shift-and-XOR."""
-    r = 0
-    while b:
-        if b & 1:
-            r ^= a
-        a, b = (a << 1) ^ (0x11D if a & 0x80 else 0), b >> 1
-    return r
-
-
-def evaluate(code, x):
-    r = 0
-    for c in code:
-        r = gf_mul(r, x) ^ c
-    return r
 
 
 def move_frame():
