@@ -170,11 +170,15 @@ static int implied_len(uint8_t type) {
   return (type & 0x80u) ? rbx1_response_len((uint8_t)(type & 0x7Fu)) : rbx1_request_len(type);
 }
 
+/* The CRC a frame of payload length len in buf carries (little-endian after its payload). */
+static uint32_t received_crc(const rbx1_decoder *d, uint8_t len) {
+  const uint8_t *c = d->buf + 4 + len;
+  return (uint32_t)c[0] | ((uint32_t)c[1] << 8) | ((uint32_t)c[2] << 16) | ((uint32_t)c[3] << 24);
+}
+
 /* 1 if buf holds a frame of payload length len whose CRC holds. */
 static int crc_holds(const rbx1_decoder *d, uint8_t len) {
-  const uint8_t *c = d->buf + 4 + len;
-  uint32_t rx = (uint32_t)c[0] | ((uint32_t)c[1] << 8) | ((uint32_t)c[2] << 16) | ((uint32_t)c[3] << 24);
-  return rbx1_crc32(d->buf + 1, (size_t)len + 3) == rx;
+  return rbx1_crc32(d->buf + 1, (size_t)len + 3) == received_crc(d, len);
 }
 
 /* The frame read with its parity: one damaged byte after LEN is corrected (LEN itself was taken as read, so an
@@ -200,12 +204,11 @@ static int relength_holds(rbx1_decoder *d, uint8_t len) {
 }
 
 static void deliver(rbx1_decoder *d, uint8_t len) {
-  const uint8_t *c = d->buf + 4 + len;
   rbx1_frame f;
   f.seq = d->buf[2];
   f.type = d->buf[3];
   f.len = len;
-  f.crc = (uint32_t)c[0] | ((uint32_t)c[1] << 8) | ((uint32_t)c[2] << 16) | ((uint32_t)c[3] << 24);
+  f.crc = received_crc(d, len);
   memcpy(f.payload, d->buf + 4, len);
   if (d->n > len + RBX1_FRAME_OVERHEAD) { /* bytes after it (after a rescan) stay: the first starts a candidate */
     d->n = (uint8_t)(d->n - (len + RBX1_FRAME_OVERHEAD));

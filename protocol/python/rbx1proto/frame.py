@@ -93,6 +93,7 @@ class Decoder:
         self.tried = 0  # the candidate's readings ending at or before this many bytes have been tried
         self.skip = 0   # parity bytes still to come of a frame delivered before them
         self.after = False  # the next byte follows a delivered frame: it starts a candidate whatever its value
+        self.alt_end = self.last = 0  # the candidate's reading with its TYPE's length ends here (0: none); its last
 
     def pending(self):
         """True while a frame has started but not completed, or its parity bytes are still to come."""
@@ -128,9 +129,11 @@ class Decoder:
             self._settle(out)
         return out
 
+    def _received_crc(self, length):
+        return int.from_bytes(self.buf[4 + length:8 + length], "little")
+
     def _crc_holds(self, length):
-        buf = self.buf
-        return crc32(buf[1:4 + length]) == int.from_bytes(buf[4 + length:8 + length], "little")
+        return crc32(self.buf[1:4 + length]) == self._received_crc(length)
 
     def _corrected_holds(self, length):
         found = fec_locate(self.buf[1:length + OVERHEAD])
@@ -152,7 +155,7 @@ class Decoder:
 
     def _deliver(self, length, out):
         buf = self.buf
-        out.append(Frame(buf[2], buf[3], bytes(buf[4:4 + length]), int.from_bytes(buf[4 + length:8 + length], "little")))
+        out.append(Frame(buf[2], buf[3], bytes(buf[4:4 + length]), self._received_crc(length)))
         if len(buf) > length + OVERHEAD:  # bytes after it (after a rescan) stay: the first starts a candidate
             del buf[:length + OVERHEAD]
         else:  # the next byte starts one; a frame delivered at its CRC has its parity still to come
@@ -165,12 +168,11 @@ class Decoder:
         buf = self.buf
         while len(buf) >= 4:
             length, seq = buf[1], buf[2]
-            alt = implied_len(buf[3])
-            if alt == length:
-                alt = -1
-            last = length + OVERHEAD if length <= MAX_PAYLOAD else 0
-            if alt >= 0:
-                last = max(last, alt + OVERHEAD)
+            if self.tried < 4:  # a new candidate: where its readings end, worked out once
+                alt = implied_len(buf[3])
+                self.alt_end = alt + OVERHEAD if alt >= 0 and alt != length else 0
+                self.last = max(length + OVERHEAD if length <= MAX_PAYLOAD else 0, self.alt_end)
+            last = self.last
             delivered = False
             for end in range(self.tried + 1, min(len(buf), last) + 1):
                 self.tried = end
@@ -178,8 +180,8 @@ class Decoder:
                     delivered = True
                 elif length <= MAX_PAYLOAD and end == length + OVERHEAD and self._corrected_holds(length):
                     delivered = True
-                elif alt >= 0 and end == alt + OVERHEAD and self._relength_holds(alt):
-                    delivered, length = True, alt
+                elif end == self.alt_end and self._relength_holds(end - OVERHEAD):
+                    delivered, length = True, end - OVERHEAD
                 if delivered:
                     self._deliver(length, out)
                     break
