@@ -602,7 +602,6 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
   // answer or NAK was about, so a resend waits behind a few frames, not the whole window.
   const uint32_t ahead = static_cast<uint32_t>(ahead_.load());
   auto room = [&] {
-    if (base == next) seen_tx_ = tx;  // every request written is answered: what was left on the line no longer counts
     size_t r = std::min(n, base + win) - next;
     if (win > 1 && ahead) r = std::min<size_t>(r, tx - seen_tx_ >= ahead ? 0 : ahead - (tx - seen_tx_));
     return r;
@@ -649,6 +648,7 @@ int Link::stream(std::vector<StreamRequest>& reqs) {
       tries = silences = 0;
       oldest_since = last_done_;
     }
+    if (base == next) seen_tx_ = tx;  // every request written is answered: what was left on the line no longer counts
     if (!connected_) {
       result = down_error();
       break;

@@ -238,8 +238,6 @@ class Link:
             # New requests go out as answers come back (PROTOCOL.md "Pacing"): a resend then waits behind a few
             # frames, not behind the whole window, and is answered before the window runs dry.
             room = min(n, base + win) - nxt
-            if base == nxt:
-                seen = tx  # every request written is answered: what was left on the line no longer counts
             if win > 1 and self.ahead:
                 room = min(room, self.ahead - (tx - seen))
             if nxt < n and room > 0:
@@ -319,6 +317,8 @@ class Link:
                     base += 1
                 tries = silences = 0
                 oldest_since = self.clock()
+                if base == nxt:
+                    seen = tx  # every request written is answered: what was left on the line no longer counts
             if base == n:
                 break
             again = sorted(j for j in again if results[j] is None)
