@@ -8,6 +8,9 @@ JOBS       ?= 2
 FUZZ_SECONDS ?= 60
 SOAK_PICKS ?= 1000
 PORT       ?= /dev/ttyACM0
+# ccache keys on paths relative to the checkout, so clones and worktrees share one cache.
+export CCACHE_BASEDIR := $(CURDIR)
+export CCACHE_NOHASHDIR := true
 
 all: host firmware
 
