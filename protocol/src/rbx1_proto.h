@@ -16,7 +16,6 @@ extern "C" {
 #define RBX1_FRAME_OVERHEAD 10 /* SYNC LEN SEQ TYPE, 4 CRC bytes, 2 parity bytes */
 #define RBX1_FEC_BYTES 2
 #define RBX1_MAX_FRAME (RBX1_MAX_PAYLOAD + RBX1_FRAME_OVERHEAD)
-#define RBX1_JOINTS 6
 #define RBX1_RESPONSE(type) ((uint8_t)((type) | 0x80u))
 
 /* Message ids, status codes, states, bits and config keys: generated from messages.json. */
