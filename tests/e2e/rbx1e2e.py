@@ -366,10 +366,10 @@ def configure_fast_firmware(port):
     """Raises the firmware's per-joint MAX_SPEED and ACCEL (EEPROM config, protocol CONFIG_SET) so that the test
     arm can move at FAST_DEG_S; the daemon then plans at that speed."""
     from rbx1proto.link import Link
-    from rbx1proto.messages import Key, MsgType
+    from rbx1proto.messages import JOINTS, Key, MsgType
     with Link(port) as link:
         link.hello()
-        for j in range(6):
+        for j in range(JOINTS):
             for key, value in ((Key.MAX_SPEED, FAST_MAX_SPEED), (Key.ACCEL, FAST_ACCEL)):
                 r = link.request(MsgType.CONFIG_SET, joint=j, key=key, value=value)
                 assert r["status"] == 0, (j, key, r)
