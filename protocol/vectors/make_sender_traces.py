@@ -162,6 +162,8 @@ def scenarios():
             "again", n=4, lose_to={4, 5}),
         run("held_answers_lost", "a lost request's followers held, and the answers of their release lost: the "
             "later answers show them, each sent again once", lose_to={1}, lose_back={5, 6}),
+        run("release_answer_lost", "the 1st request lost, its resend's answer lost too: the first answer of the "
+            "release sends it again, the other answers of that release do not", lose_to={1}, lose_back={4}),
         run("damaged_request", "the 3rd request arrives damaged: NAK BAD_CRC (not counted), the HELD of its "
             "followers shows it lost", damage_to={3}),
         run("damaged_oldest", "the 1st request arrives damaged: a BAD_CRC NAK naming the oldest unanswered one "
