@@ -2,7 +2,7 @@
 import os
 
 from . import console_http, control_socket
-from .errors import error_from
+from .errors import Disconnected, error_from
 
 DEFAULT_SOCKET = "/run/rbx1/rbx1d.sock"
 
@@ -28,7 +28,10 @@ class Job:
 
     def __iter__(self):
         while self.final is None:
-            line = next(self._lines)  # the sources raise Disconnected rather than end without a final line
+            try:
+                line = next(self._lines)
+            except StopIteration:
+                raise Disconnected("the reply ended without a final line") from None
             if _is_final(line):
                 self.final = line
                 self._lines.close()

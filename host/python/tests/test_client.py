@@ -149,7 +149,8 @@ def test_request_errors_share_a_base(fake):
 
 def daemon_codes():
     """Every error code that rbx1d's sources write (the CLI's own messages in host/cli are not replies)."""
-    direct = re.compile(r'(?:\.error\(|->error\(|fail\(|error_json\(|code = |error = \{|abort_reason_ = )\s*"([a-z_]+)"')
+    direct = re.compile(r'(?:\.error\(|->error\(|fail\(|error_json\(|code = |error = \{|abort_reason_ = )'
+                        r'\s*"([a-z_]+)"')
     chosen = re.compile(r'error\([^;"]*\?\s*"([a-z_]+)"\s*:\s*"([a-z_]+)"')  # error(held ? "estop_active" : "fault"
     codes = set()
     for path in (ROOT / "host").rglob("*.cpp"):
@@ -271,8 +272,8 @@ class FakeConsole(http.server.BaseHTTPRequestHandler):
         if self.headers.get("Authorization") != "Bearer " + self.token:
             return self.reply(401, {"error": {"code": "unauthorized", "message": "wrong console token"}})
         if self.path == "/api/pick" and body.get("name") == "unicorn":
-            return self.reply(409, {"error": {"code": "object_absent", "message": "object \"unicorn\" is not in the "
-                                                                                  "scene"}, "events": [event("absent")]})
+            absent = {"code": "object_absent", "message": "object \"unicorn\" is not in the scene"}
+            return self.reply(409, {"error": absent, "events": [event("absent")]})
         self.reply(200, {"result": {"done": self.path}, "events": [event("job_started"), event("step_done")]})
 
 
