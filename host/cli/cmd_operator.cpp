@@ -9,6 +9,7 @@
 
 #include "commands.hpp"
 #include "markers.hpp"
+#include "rbx1_messages.h"
 
 namespace rbx1::cli {
 
@@ -125,7 +126,7 @@ void add_operator_commands(CLI::App& app, int& exit_code) {
   o->socket = default_socket();
 
   CLI::App* jog = add(app, o, "jog", "move one joint by steps or degrees, or the tool point by millimetres (yaw kept)");
-  jog->add_option("--joint", o->joint, "joint 1..6")->check(CLI::Range(1, 6));
+  jog->add_option("--joint", o->joint, "the joint's number, from 1")->check(CLI::Range(1, RBX1_JOINTS));
   auto* steps = jog->add_option("--steps", o->steps, "relative motor steps");
   auto* deg = jog->add_option("--deg", o->deg, "relative degrees");
   auto* mm = jog->add_option("--mm", o->mm, "tool point DX DY DZ in mm (base frame)")->expected(3);

@@ -1,6 +1,8 @@
 // command_table.cpp - the table of requests, and the generic reading and writing of their fields.
 #include "command_table.hpp"
 
+#include "rbx1_messages.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -22,7 +24,9 @@ bool check_jog(const nlohmann::json& j, Request& r, Error& e) {
     r.joint = 0;
     return true;
   }
-  if (!joint) return bad(e, "missing_field", "jog needs \"joint\" (1..6) with \"steps\" or \"deg\", or \"mm\"");
+  if (!joint)
+    return bad(e, "missing_field", "jog needs \"joint\" (1.." + std::to_string(RBX1_JOINTS) +
+                                       ") with \"steps\" or \"deg\", or \"mm\"");
   if (steps == deg) return bad(e, "bad_request", "jog of a joint takes exactly one of \"steps\" and \"deg\"");
   r.by_steps = steps;
   return true;
@@ -70,7 +74,7 @@ const std::vector<CommandSpec> kTable = {
     {Command::ClearFault, "clear_fault", Access::Act, Mode::Job, "release a latched e-stop or fault after a check", {}},
     {Command::Shutdown, "shutdown", Access::Local, Mode::Immediate, "stop the daemon (the Unix socket only)", {}},
     {Command::Jog, "jog", Access::Act, Mode::Job, "move one joint by steps or degrees, or the tool point by mm",
-     {{"joint", F::Integer, false, &Request::joint, "joint 1..6", 1, 6},
+     {{"joint", F::Integer, false, &Request::joint, "the joint's number, from 1", 1, RBX1_JOINTS},
       {"steps", F::Integer, false, &Request::steps, "steps to move the joint", -1000000, 1000000},
       {"deg", F::Number, false, &Request::deg, "degrees to move the joint", -360, 360},
       {"mm", F::Vec3, false, &Request::mm, "[dx, dy, dz] of the tool point, millimetres, base frame"}},

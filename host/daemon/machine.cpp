@@ -350,7 +350,7 @@ bool Machine::prepare(std::string& error) {
     std::lock_guard lock(mutex_);
     bool back = last_status_ && counters_went_back(*last_status_, st);
     last_status_ = st;
-    if (session_ && (st.homed != 0x3F || back)) {
+    if (session_ && (st.homed != RBX1_ALL_JOINTS_MASK || back)) {
       hold(back ? "the firmware's counters went back (reset?)" : "the firmware lost its joint positions (reset?)");
       error = link_error_;
       return false;
@@ -389,7 +389,7 @@ bool Machine::prepare(std::string& error) {
       return false;
     }
   }
-  if (st.homed != 0x3F) {
+  if (st.homed != RBX1_ALL_JOINTS_MASK) {
     if (config_.daemon.home_on_start == "home") {
       rbx1_home_resp h{};
       if (link_.home(0, h) < 0 || h.status != RBX1_OK) {
@@ -409,7 +409,7 @@ bool Machine::prepare(std::string& error) {
           return false;
         }
       } while (st.state == RBX1_STATE_HOMING && Clock::now() < deadline);
-      if (st.homed != 0x3F) {
+      if (st.homed != RBX1_ALL_JOINTS_MASK) {
         error = "homing did not complete";
         return false;
       }
@@ -485,7 +485,7 @@ void Machine::worker() {
         std::lock_guard relock(mutex_);
         bool back = last_status_ && counters_went_back(*last_status_, st);
         last_status_ = st;
-        if (session_ && !hold_ && (st.homed != 0x3F || back))
+        if (session_ && !hold_ && (st.homed != RBX1_ALL_JOINTS_MASK || back))
           hold(back ? "the firmware's counters went back (reset?)" : "the firmware lost its joint positions (reset?)");
         set_led(prepared_ && st.state != RBX1_STATE_FAULT);  // lit exactly while status says ready
       }

@@ -172,7 +172,7 @@ class Motion::Run {
         res_.last = st_;
         have_last_ = true;
         if (hooks_.on_status) hooks_.on_status(st_);
-        if (back || st_.homed != 0x3F)
+        if (back || st_.homed != RBX1_ALL_JOINTS_MASK)
           return fail("firmware_reset", std::string("the firmware ") +
                                             (back ? "counters went back" : "lost its joint positions") +
                                             " (reset?); refusing to guess the arm's state");

@@ -26,7 +26,7 @@ struct Request {
   Command command = Command::Status;
   std::string name;   // pick: the object's library label; pose_save, place_save, teach: the name to save
   std::string place;  // pick: a place name from [arm] places
-  // jog: joint 1..6 with steps or deg, or joint 0 with mm (the tool point's Cartesian step, yaw kept).
+  // jog: joint 1..RBX1_JOINTS with steps or deg, or joint 0 with mm (the tool point's Cartesian step, yaw kept).
   int joint = 0;
   int32_t steps = 0;
   double deg = 0;

@@ -107,3 +107,24 @@ def test_subscribers_that_never_read_stall_neither_the_pick_nor_the_estop(sim, d
     sub.wait(lambda ls: any(l.get("topic") == "status" and l.get("last_estop") == "control" for l in ls))
     for s in idle + [sub]:
         s.close()
+
+
+def test_the_console_log_shows_a_cli_job(sim, daemon_factory):
+    """The console's event log follows the bus: a job started from the CLI is in it, request to result."""
+    import urllib.request
+    d = daemon_factory(sim.port)
+    url = d.console_url()
+    cli = subprocess.run([e2e.need(e2e.BIN / "rbx1"), "home", "--socket", d.socket], capture_output=True, text=True,
+                         timeout=120)
+    assert cli.returncode == 0, cli.stderr
+    seen, deadline = [], time.monotonic() + 20
+    with urllib.request.urlopen(url.rstrip("/") + "/api/events", timeout=20) as r:
+        while time.monotonic() < deadline:
+            line = r.readline().decode()
+            if line.startswith("data:"):
+                e = json.loads(line[5:])
+                if e.get("cmd") == "home":
+                    seen.append("request" if "request" in e else "result" if "result" in e else e.get("event"))
+                    if "result" in e:
+                        break
+    assert seen[0] == "request" and "job_started" in seen and seen[-1] == "result", seen
