@@ -108,19 +108,32 @@ LightFit compensate_light(const cv::Mat& gray, const cv::Mat& bg, cv::Mat* corre
   CV_Assert(gray.type() == CV_8U && bg.type() == CV_8U && gray.size() == bg.size());
   // Samples on a grid of about 6 000 points, skipping saturated pixels (their ratio says nothing).
   const int step = std::max(1, int(std::sqrt(double(gray.total()) / 6000.0)));
-  std::vector<float> b, g;
+  std::vector<float> b, g, clipped;  // clipped: the frame where the background is saturated white
   for (int y = step / 2; y < gray.rows; y += step) {
     const uchar* gr = gray.ptr<uchar>(y);
     const uchar* br = bg.ptr<uchar>(y);
-    for (int x = step / 2; x < gray.cols; x += step)
+    for (int x = step / 2; x < gray.cols; x += step) {
       if (gr[x] > 2 && gr[x] < 253 && br[x] > 2 && br[x] < 253) b.push_back(br[x]), g.push_back(gr[x]);
+      else if (gr[x] > 2 && gr[x] < 253 && br[x] >= 253) clipped.push_back(gr[x]);
+    }
   }
   LightFit fit;
   const size_t n = b.size();
-  if (n < 50) return fit;
+  if (n < 50 && clipped.size() >= 50) {
+    // An over-exposed white table captured as 255 everywhere: its true level is unknown, but the dimmer frame
+    // shows where the table now is (issue 27: a frame a few per cent darker read the whole table as an object,
+    // and nothing was found). The background is brought to the frame's median there (the table is most of it).
+    const float med = kth_smallest(clipped, clipped.size() / 2);
+    fit.gain = med / 255.0;
+    size_t near = 0;
+    for (float v : clipped) near += std::abs(v - med) <= 8;
+    fit.unchanged = double(near) / double(clipped.size());
+  } else if (n < 50) {
+    return fit;
+  }
   std::vector<char> use(n, 1);
   std::vector<float> res(n);
-  for (int iter = 0; iter < 4; ++iter) {
+  for (int iter = 0; iter < 4 && n >= 50; ++iter) {
     double sb = 0, sg = 0, sbb = 0, sbg = 0, m = 0;
     for (size_t i = 0; i < n; ++i)
       if (use[i]) sb += b[i], sg += g[i], sbb += double(b[i]) * b[i], sbg += double(b[i]) * g[i], m += 1;

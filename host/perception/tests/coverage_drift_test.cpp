@@ -105,3 +105,35 @@ TEST(LightDrift, GainAndOffsetSweepAgainstTheCapturedBackground) {
 
 }  // namespace
 }  // namespace rbx1::vision
+
+namespace rbx1::vision {
+namespace {
+
+TEST(LightDrift, AnOverExposedBackgroundStillFindsTheObjects) {
+  // A white table over-exposed when the background was captured (255 everywhere, its true level ~285): the
+  // light fit had no unsaturated pixel to work on and left the background as it was, so a frame a few per cent
+  // darker (its table 228-252) read the whole table as one dark object: 0 objects (before: 0 at 0.85).
+  using namespace test;
+  Scene s;
+  s.background = 255, s.object = 63, s.blur_sigma = 0.8;
+  const std::vector<Poly> polys = {ellipse({150, 140}, 40, 40, 0), rectangle({450, 150}, 120, 50, 20),
+                                   regular({160, 350}, 45, 6, 0), ellipse({330, 330}, 60, 35, 30),
+                                   rectangle({500, 360}, 90, 40, 70)};
+  const cv::Mat bg(480, 640, CV_8U, cv::Scalar(255));
+  const cv::Mat scene = to_gray8(render(s, polys));
+  for (double gain = 0.80; gain <= 0.8801; gain += 0.02) {
+    cv::Mat f, noise(scene.size(), CV_32F), lit;
+    scene.convertTo(f, CV_32F, 285.0 / 255 * gain);
+    cv::randn(noise, 0, 2);
+    f += noise;
+    f.convertTo(lit, CV_8U);
+    DetectorOptions o;
+    Detection d;
+    std::string e;
+    ASSERT_TRUE(detect(lit, bg, o, nullptr, d, e)) << e;
+    EXPECT_EQ(d.objects.size(), polys.size()) << "gain " << gain;
+  }
+}
+
+}  // namespace
+}  // namespace rbx1::vision
