@@ -38,12 +38,12 @@ def run(d, docs, background):
 @pytest.fixture(scope="module")
 def alone(tmp_path_factory):
     d = tmp_path_factory.mktemp("alone")
-    return str(d), narrow.generate(str(d), 8, 27, touching=False)
+    return str(d), narrow.generate(str(d), 6, 27, touching=False)
 
 
 @pytest.mark.parametrize("background", [False, True], ids=["auto", "captured"])
 def test_single_objects_with_narrow_parts_are_not_split(alone, background):
-    # Before issue 27's rules: 17 of these 34 objects split (every crown, jellyfish, pan and fruit_leaf).
+    # Before issue 27's rules: 11 of these 25 objects split (every crown, jellyfish, pan and fruit_leaf).
     t = run(*alone, background)
     assert t["singles"] >= 25
     assert t["singles_split"] == 0, t["per_class"]
@@ -52,12 +52,12 @@ def test_single_objects_with_narrow_parts_are_not_split(alone, background):
 
 
 def test_narrow_objects_touching_others_are_not_cut_into_pieces(tmp_path):
-    # Before: 4 of these 13 touching pairs split into their two objects, 9 cut inside a member.
-    docs = narrow.generate(str(tmp_path), 8, 27, touching=True)
+    # Before: 2 of these 9 touching pairs split into their two objects, 7 cut inside a member.
+    docs = narrow.generate(str(tmp_path), 6, 27, touching=True)
     t = run(str(tmp_path), docs, True)
     assert t["groups"] >= 8
     assert t["groups_cut"] == 0, t
-    assert t["groups_split"] >= 11, t
+    assert t["groups_split"] >= 8, t
     assert t["singles_split"] == 0, t["per_class"]
 
 
