@@ -110,8 +110,12 @@ void add_detect(CLI::App& app, int& exit_code) {
         return;
       }
     }
-    if (*json) std::printf("%s\n", vis->to_json(det).dump().c_str());
-    else std::fputs(vis->report(det).c_str(), stdout);
+    if (*json) {
+      for (const std::string& w : det.warnings) std::fprintf(stderr, "rbx1 detect: warning: %s\n", w.c_str());
+      std::printf("%s\n", vis->to_json(det).dump().c_str());
+    } else {
+      std::fputs(vis->report(det).c_str(), stdout);
+    }
   });
 }
 

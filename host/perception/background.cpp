@@ -108,19 +108,32 @@ LightFit compensate_light(const cv::Mat& gray, const cv::Mat& bg, cv::Mat* corre
   CV_Assert(gray.type() == CV_8U && bg.type() == CV_8U && gray.size() == bg.size());
   // Samples on a grid of about 6 000 points, skipping saturated pixels (their ratio says nothing).
   const int step = std::max(1, int(std::sqrt(double(gray.total()) / 6000.0)));
-  std::vector<float> b, g;
+  std::vector<float> b, g, clipped;  // clipped: the frame where the background is saturated white
   for (int y = step / 2; y < gray.rows; y += step) {
     const uchar* gr = gray.ptr<uchar>(y);
     const uchar* br = bg.ptr<uchar>(y);
-    for (int x = step / 2; x < gray.cols; x += step)
+    for (int x = step / 2; x < gray.cols; x += step) {
       if (gr[x] > 2 && gr[x] < 253 && br[x] > 2 && br[x] < 253) b.push_back(br[x]), g.push_back(gr[x]);
+      else if (gr[x] > 2 && gr[x] < 253 && br[x] >= 253) clipped.push_back(gr[x]);
+    }
   }
   LightFit fit;
   const size_t n = b.size();
-  if (n < 50) return fit;
+  if (n < 50 && clipped.size() >= 50) {
+    // An over-exposed white table captured as 255 everywhere: its true level is unknown, but the dimmer frame
+    // shows where the table now is (issue 27: a frame a few per cent darker read the whole table as an object,
+    // and nothing was found). The background is brought to the frame's median there (the table is most of it).
+    const float med = kth_smallest(clipped, clipped.size() / 2);
+    fit.gain = med / 255.0;
+    size_t near = 0;
+    for (float v : clipped) near += std::abs(v - med) <= 8;
+    fit.unchanged = double(near) / double(clipped.size());
+  } else if (n < 50) {
+    return fit;
+  }
   std::vector<char> use(n, 1);
   std::vector<float> res(n);
-  for (int iter = 0; iter < 4; ++iter) {
+  for (int iter = 0; iter < 4 && n >= 50; ++iter) {
     double sb = 0, sg = 0, sbb = 0, sbg = 0, m = 0;
     for (size_t i = 0; i < n; ++i)
       if (use[i]) sb += b[i], sg += g[i], sbb += double(b[i]) * b[i], sbg += double(b[i]) * g[i], m += 1;
@@ -244,11 +257,34 @@ bool fit_surface(const cv::Mat& small, const cv::Mat& cls, cv::Mat& coef, double
   return true;
 }
 
+// Share of the low-resolution frame's outermost ring in the class (the table runs under the frame's edges,
+// objects lie inside it: those cut by the edge are dropped anyway).
+double border_share(const cv::Mat& cls) {
+  int in = 0, n = 0;
+  for (int x = 0; x < cls.cols; ++x) in += (cls.at<uchar>(0, x) > 0) + (cls.at<uchar>(cls.rows - 1, x) > 0), n += 2;
+  for (int y = 1; y + 1 < cls.rows; ++y) in += (cls.at<uchar>(y, 0) > 0) + (cls.at<uchar>(y, cls.cols - 1) > 0), n += 2;
+  return n ? double(in) / n : 0;
+}
+
+// Connected pieces of the class (8-connected, at least 4 px of the low-resolution frame).
+int pieces_of(const cv::Mat& cls) {
+  cv::Mat lab, stats, centres;
+  const int n = cv::connectedComponentsWithStats(cls, lab, stats, centres, 8, CV_32S);
+  int out = 0;
+  for (int i = 1; i < n; ++i) out += stats.at<int>(i, cv::CC_STAT_AREA) >= 4;
+  return out;
+}
+
 // The global model: Otsu splits the low-resolution frame in two classes. Either class covering at least 30 %
-// of the frame may be the table; the one a smooth (quadratic) surface fits best is (a light box in a dark
-// frame, a tray more than half covered). That surface is the background when the histogram is clearly bimodal
-// and the table fits it within an eighth of the classes' separation.
-bool global_background(const cv::Mat& small, cv::Mat& surface, double& sep_out) {
+// of the frame may be the table (a light box in a dark frame, a tray more than half covered); with the
+// objects' polarity given, only the class on the other side of it, from 10 % of the frame (dark objects
+// covering most of the frame: issue 27, six squares on white all lost from 30.4 % coverage, where the squares'
+// class fitted the surface as well as the table's and was taken for it). Of the classes left, the one a smooth
+// (quadratic) surface fits best is the table; when both fit alike (residuals within 1.5x), the one in fewer
+// pieces (the table is one, the objects several: pca_test1.jpg's light box holds six propellers, its dark frame
+// is a seventh piece of their class), then the one holding more of the frame's border, and when that is even
+// too (within 0.2), the choice is noted as a guess.
+bool global_background(const cv::Mat& small, int sign, cv::Mat& surface, double& sep_out, std::string& note) {
   cv::Mat hi;
   cv::threshold(small, hi, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
   cv::Scalar mean_all, sd_all;
@@ -261,19 +297,42 @@ bool global_background(const cv::Mat& small, cv::Mat& surface, double& sep_out) 
   if (between < 0.75 * total) return false;  // not bimodal enough
   const double sep = std::abs(m_hi - m_lo);
   sep_out = sep;
-  cv::Mat coef, best;
-  double best_resid = 1e300;
-  for (const cv::Mat& cls : {hi, cv::Mat(~hi)}) {
-    double resid = 0;
-    if (double(cv::countNonZero(cls)) < 0.3 * n || !fit_surface(small, cls, coef, resid)) continue;
-    if (resid < best_resid) best_resid = resid, best = coef.clone();
+  const double limit = std::max(3.0, sep / 8);
+  struct Fit { cv::Mat coef; double resid = 1e300, border = 0; int pieces = 0; };
+  std::vector<Fit> fits;
+  const cv::Mat lo = ~hi;
+  for (int c = 0; c < 2; ++c) {
+    const cv::Mat& cls = c == 0 ? hi : lo;
+    if (sign != 0 && (c == 0) != (sign < 0)) continue;  // dark objects: the table is the lighter class
+    Fit f;
+    if (double(cv::countNonZero(cls)) < (sign != 0 ? 0.1 : 0.3) * n || !fit_surface(small, cls, f.coef, f.resid) ||
+        f.resid > limit)
+      continue;
+    f.border = border_share(cls);
+    f.pieces = pieces_of(cls);
+    fits.push_back(f);
   }
-  if (best.empty() || best_resid > std::max(3.0, sep / 8)) return false;  // uneven or patterned: local model
+  if (fits.empty()) return false;  // uneven or patterned: local model
+  size_t best = 0;
+  if (fits.size() == 2) {
+    const double r0 = fits[0].resid, r1 = fits[1].resid;
+    if (std::max(r0, r1) > 1.5 * std::min(r0, r1) + 0.5) {
+      best = r1 < r0;
+    } else if (fits[0].pieces != fits[1].pieces) {
+      best = fits[1].pieces < fits[0].pieces;  // the table is one piece, the objects several
+    } else {
+      best = fits[1].border > fits[0].border;
+      if (std::abs(fits[0].border - fits[1].border) < 0.2)
+        note = "automatic background: the table could be the lighter or the darker half of the frame (both fit "
+               "a smooth surface and reach the frame's edges alike); took the " +
+               std::string(best == 0 ? "lighter" : "darker") + " one: give --objects dark|light or --background";
+    }
+  }
+  const double* c = fits[best].coef.ptr<double>();
   surface.create(small.size(), CV_32F);
   for (int y = 0; y < small.rows; ++y)
     for (int x = 0; x < small.cols; ++x) {
       double u = 2.0 * x / std::max(1, small.cols - 1) - 1, v = 2.0 * y / std::max(1, small.rows - 1) - 1;
-      const double* c = best.ptr<double>();
       surface.at<float>(y, x) = float(c[0] + c[1] * u + c[2] * v + c[3] * u * u + c[4] * u * v + c[5] * v * v);
     }
   return true;
@@ -289,7 +348,7 @@ void contrast_auto(const cv::Mat& gray, Polarity objects, double min_contrast, C
   cv::Mat bsmall;
   int sign = objects == Polarity::Auto ? 0 : sign_of(objects);
   double sep = 0;
-  out.global_model = global_background(small, bsmall, sep);
+  out.global_model = global_background(small, sign, bsmall, sep, out.note);
   if (!out.global_model) {
     int k = std::max(3, (std::min(small.cols, small.rows) / 3) | 1);
     k = std::min(k, 255);

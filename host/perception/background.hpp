@@ -16,6 +16,7 @@ struct Contrast {
   double noise_sigma = 1;    // robust spread of the difference over the table (noise plus pattern residue)
   bool global_model = false; // automatic background: one smooth surface fitted to the table class (bimodal)
   bool modelled = false;     // the background was modelled from the frame (no captured empty table)
+  std::string note;          // why the model may be wrong (empty when it is not in doubt)
 };
 
 // The background the paper assumes, captured for real: the per-pixel mean of several frames of the empty

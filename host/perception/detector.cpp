@@ -50,6 +50,7 @@ bool detect(const cv::Mat& gray, const cv::Mat& background_gray, const DetectorO
       return false;
   } else {
     contrast_auto(gray, opt.objects, opt.isolation.min_contrast, con);
+    if (!con.note.empty()) out.warnings.push_back(con.note);
   }
   out.sign = con.sign;
   if (!isolate(con, opt.isolation, out.isolation, error, use_dark ? &dark : nullptr)) return false;

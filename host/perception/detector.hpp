@@ -36,6 +36,7 @@ struct Detection {
   Isolation isolation;                 // label image (neighbours for finger clearance)
   std::vector<DetectedObject> objects;
   std::vector<std::vector<double>> profiles;  // identity profile per object
+  std::vector<std::string> warnings;   // why the objects found may be wrong or missing (the method could not decide)
 };
 
 // The frame and the known background in colour (CV_8UC3 BGR, the grey images' size), for the shadow test.

@@ -48,6 +48,43 @@ CutEnds cut_ends(const cv::Mat& parts, const cv::Mat& mask, int a, int b) {
   return c;
 }
 
+// Whether two bodies meet at a pinch: the neck's half width h (the distance transform's maximum along the cut
+// between a and b), then on each side the distance from the cut to the nearest pixel where the region is
+// (1 + opening) times as wide (h + max(2, opening h) from the outline). Two objects touching widen at once on
+// either side of the contact: both distances come to about 1.5 h (a star's tip, a wedge, 5 h on its side);
+// a stem, a handle's shaft or a dumbbell's bar stays h wide for its length, on one side of the cut or split
+// between both, so the two distances add up to more than 4 h + 8 px (a 1 px contact beside a wedge: 10.3).
+bool widens_from_neck(const cv::Mat& parts, const cv::Mat& dist, int a, int b, double opening) {
+  const int w = parts.cols, h = parts.rows;
+  cv::Mat not_cut(parts.size(), CV_8U, cv::Scalar(255));
+  double neck = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const int l = parts.at<int>(y, x);
+      if (l != a && l != b) continue;
+      const int other = l == a ? b : a;
+      bool on_cut = false;
+      for (int dy = -1; dy <= 1 && !on_cut; ++dy)
+        for (int dx = -1; dx <= 1 && !on_cut; ++dx) {
+          const int qx = x + dx, qy = y + dy;
+          on_cut = qx >= 0 && qy >= 0 && qx < w && qy < h && parts.at<int>(qy, qx) == other;
+        }
+      if (on_cut) not_cut.at<uchar>(y, x) = 0, neck = std::max(neck, double(dist.at<float>(y, x)));
+    }
+  cv::Mat from_cut;
+  cv::distanceTransform(not_cut, from_cut, cv::DIST_L2, 3);
+  const double wide = neck + std::max(2.0, opening * neck);
+  double to_a = 1e9, to_b = 1e9;  // from the cut to the nearest wide pixel on each side
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const int l = parts.at<int>(y, x);
+      if ((l != a && l != b) || dist.at<float>(y, x) < wide) continue;
+      double& m = l == a ? to_a : to_b;
+      m = std::min(m, double(from_cut.at<float>(y, x)));
+    }
+  return to_a + to_b <= 4 * neck + 8;
+}
+
 }  // namespace
 
 int split_touching(const cv::Mat& mask, const SplitOptions& opt, cv::Mat& parts) {
@@ -155,13 +192,28 @@ int split_touching(const cv::Mat& mask, const SplitOptions& opt, cv::Mat& parts)
   const int n = int(seeds.size());
   std::vector<int> merged(size_t(n + 1));
   std::iota(merged.begin(), merged.end(), 0);
+  std::vector<std::vector<CutEnds>> cut(size_t(n + 1), std::vector<CutEnds>(size_t(n + 1)));
+  std::vector<int> neighbours(size_t(n + 1), 0);
+  for (int a = 1; a <= n; ++a)
+    for (int b = a + 1; b <= n; ++b)
+      if ((cut[size_t(a)][size_t(b)] = cut_ends(parts, mask, a, b)).found) ++neighbours[size_t(a)], ++neighbours[size_t(b)];
   for (int a = 1; a <= n; ++a)
     for (int b = a + 1; b <= n; ++b) {
-      CutEnds c = cut_ends(parts, mask, a, b);
+      const CutEnds& c = cut[size_t(a)][size_t(b)];
       if (!c.found) continue;
       const double d1 = cv::pointPolygonTest(hull, cv::Point2f(c.e1), true);
       const double d2 = cv::pointPolygonTest(hull, cv::Point2f(c.e2), true);
-      if (std::min(d1, d2) < opt.min_cut_depth_px) {
+      // Both bodies objects on their own: a body far smaller than the one it hangs from (a leaf on its stem, a
+      // crown's ball on its prong, a jellyfish's bulb) or a neck that does not widen into both bodies (a stem,
+      // a handle's shaft cut along its length) is a narrow part of one object (issue 27: 3 of 20 silhouettes).
+      // A part hangs from one body: a small body between two or more (the shade joining two sweets,
+      // smarties.png) is left to the shade and fringe tests, as before.
+      const int smaller = count[size_t(a)] < count[size_t(b)] ? a : b;
+      const bool hangs = neighbours[size_t(smaller)] == 1;
+      const bool small = std::min(count[size_t(a)], count[size_t(b)]) <
+                         opt.min_body_ratio * std::max(count[size_t(a)], count[size_t(b)]);
+      if (std::min(d1, d2) < opt.min_cut_depth_px ||
+          (hangs && (small || !widens_from_neck(parts, dist, a, b, opt.neck_opening)))) {
         int ra = find(merged, a), rb = find(merged, b);
         if (ra != rb) merged[size_t(std::max(ra, rb))] = std::min(ra, rb);
       }

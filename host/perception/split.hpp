@@ -15,11 +15,17 @@ struct SplitOptions {
   int min_area_px = 40;            // each body at least this big
   double min_cut_depth_px = 2.5;   // both ends of a cut at least this deep in a concavity of the outline
                                    // (their distance to the region's convex hull)
+  double min_body_ratio = 0.25;    // the smaller of two bodies at least this fraction of the larger's area: a
+                                   // leaf on its stem, a ball on a prong, a handle's grip is part of its body
+  double neck_opening = 0.5;       // the region widens to (1 + this) times the neck within 4 neck half-widths
+                                   // + 8 px of the cut (both sides' distances added): two objects meet at a
+                                   // pinch; a stem, a handle's shaft, a dumbbell's bar stays narrow for its length
 };
 
 // mask: CV_8U region (255 inside). Returns the number of bodies found (1: not split); when > 1, `parts`
 // (CV_32S, mask's size) holds 1..n for the bodies and 0 outside. Each cut runs along the neck's watershed and
-// has both ends in concavities of the outline (else its two bodies are one).
+// has both ends in concavities of the outline, the smaller body is at least min_body_ratio of the larger and the
+// region widens from the neck on both sides within a short distance (else its two bodies are one).
 int split_touching(const cv::Mat& mask, const SplitOptions& opt, cv::Mat& parts);
 
 // Touching objects of clearly different contrast (levels, the medians over their bodies, at least 4 noise sigma

@@ -167,13 +167,15 @@ nlohmann::json Vision::to_json(const Detection& det) const {
     j["touching"] = o.touching;
     doc["objects"].push_back(j);
   }
+  if (!det.warnings.empty()) doc["warnings"] = det.warnings;  // only when the method could not decide
   return doc;
 }
 
 std::string Vision::report(const Detection& det) const {
   std::string out;
   char line[256];
-  if (det.objects.empty()) return "No objects found.\n";
+  for (const std::string& w : det.warnings) out += "Warning: " + w + "\n";
+  if (det.objects.empty()) return out + "No objects found.\n";
   for (const DetectedObject& o : det.objects) {
     std::snprintf(line, sizeof line, "Data for object #%d\n", o.index);
     out += line;

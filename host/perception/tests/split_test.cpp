@@ -70,6 +70,38 @@ TEST(Split, SingleObjectsStayWhole) {
   for (const auto& o : d.objects) EXPECT_FALSE(o.touching);
 }
 
+TEST(Split, NarrowPartsStayWithTheirBody) {
+  // Issue 27: a fruit's leaf on its stem, a crown's ball-tipped prongs, a pan's grip at the end of its handle
+  // and a dumbbell (two discs on a long bar) were cut off as touching objects. Each is one object; beside them
+  // two discs touching are still two.
+  std::vector<Poly> polys = {ellipse({110, 130}, 40, 40, 0), rectangle({112, 80}, 22, 5, 80),  // fruit, stem
+                             ellipse({128, 64}, 20, 8, -15)};                                 // leaf
+  polys.push_back(rectangle({320, 140}, 120, 36, 0));                                         // crown's band
+  for (int k = 0; k < 5; ++k) {
+    const double x = 270 + 25 * k, top = 122 - 26 - 6 * (2 - std::abs(k - 2));
+    polys.push_back(rectangle({x, (top + 124) / 2}, 124 - top, 6, 90));                      // prong
+    polys.push_back(ellipse({x, top - 4}, 8, 8, 0));                                          // ball
+  }
+  polys.push_back(ellipse({500, 130}, 38, 38, 0));                                            // pan
+  polys.push_back(rectangle({563, 130}, 50, 9, 0));                                           // handle
+  polys.push_back(ellipse({603, 130}, 22, 10, 0));                                            // grip
+  polys.push_back(ellipse({110, 350}, 30, 30, 0));                                            // dumbbell
+  polys.push_back(ellipse({250, 350}, 30, 30, 0));
+  polys.push_back(rectangle({180, 350}, 90, 10, 0));
+  polys.push_back(ellipse({420, 350}, 40, 40, 0));                                            // two discs
+  polys.push_back(ellipse({503, 350}, 44, 44, 0));
+  Detection d = run(polys);
+  ASSERT_EQ(d.objects.size(), 6u);
+  int touching = 0;
+  for (const auto& o : d.objects) touching += o.touching;
+  EXPECT_EQ(touching, 2);
+  for (cv::Point2d c : {cv::Point2d(112, 122), cv::Point2d(320, 125), cv::Point2d(525, 130), cv::Point2d(180, 350)}) {
+    const DetectedObject* o = near(d, c, 15);
+    ASSERT_TRUE(o) << c;
+    EXPECT_FALSE(o->touching) << c;
+  }
+}
+
 TEST(Split, PersistenceRejectsShallowWaists) {
   // Two overlapping discs (r = 40) drawn as one region: a waist of 85 % of their width is one object (an
   // oval with a slight dent), a waist of 40 % is two objects touching.

@@ -309,7 +309,7 @@ def generate(out_dir, count, seed, spec=None, empty=0, jobs=1):
 
 def teach_image(name, px_per_cm=40.0, angle=None, seed=0, size=(480, 360), noise=1.5):
     """One object of class `name` on a plain light table, dark, lightly blurred and noisy (a taught object)."""
-    rng = np.random.default_rng([seed, shapes.class_names().index(name)])
+    rng = np.random.default_rng([seed, list(shapes.ALL_CLASSES).index(name)])
     spec = SceneSpec(width=size[0], height=size[1], px_per_cm=px_per_cm, p_shadow=0, blur=(0.7, 0.7),
                      noise=(noise, noise), light_strength=(0.03, 0.03))
     angle = float(rng.uniform(-180, 180)) if angle is None else angle
