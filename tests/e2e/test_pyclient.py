@@ -65,3 +65,19 @@ def test_console_http_api_with_its_token(sim, daemon_factory):
     assert sorted(o["label"] for o in result["detections"]["objects"]) == sorted(e2e.scene_labels())
     assert [e["event"] for e in seen if e["event"] in ("captured", "detected")] == ["captured", "detected"], seen
     assert arm.home()["position"] == e2e.home_steps(e2e.load_default_config()["arm"])
+
+
+def test_watch_iterates_the_bus_while_another_client_moves_the_arm(sim, daemon_factory):
+    import threading
+    d = daemon_factory(sim.port)
+    arm = rbx1.Arm(socket=d.socket)
+    seen = []
+    with arm.watch(topics=("events", "status")) as w:
+        threading.Timer(0.5, lambda: rbx1.Arm(socket=d.socket).home()).start()
+        for msg in w:
+            seen.append(msg)
+            if msg.get("topic") == "events" and msg.get("cmd") == "home" and msg.get("final"):
+                break
+    home = [m for m in seen if m.get("topic") == "events" and m.get("cmd") == "home"]
+    assert "request" in home[0] and "result" in home[-1], home
+    assert any(m.get("topic") == "status" and m.get("job") == "home" for m in seen)
