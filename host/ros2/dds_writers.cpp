@@ -20,7 +20,8 @@ std_msgs_msg_dds__Header_ header(const Stamp& t, const std::string& frame) {
   return h;
 }
 
-const std::string kBaseFrame = "base_link", kCameraFrame = "camera_optical";
+// Static: the samples point into these strings until dds_write returns.
+const std::string kBaseFrame = "base_link", kCameraFrame = "camera_optical", kNoFrame;
 
 }  // namespace
 
@@ -75,7 +76,7 @@ int DdsWriters::write_joint_states(const Stamp& t, const JointSample& s) {
   std::vector<char*> names;
   for (const std::string& n : s.names) names.push_back(str(n));
   sensor_msgs_msg_dds__JointState_ m{};
-  m.header = header(t, "");  // joint_states carry no frame
+  m.header = header(t, kNoFrame);  // joint_states carry no frame
   m.name._length = m.name._maximum = uint32_t(names.size());
   m.name._buffer = names.data();
   m.position._length = m.position._maximum = uint32_t(s.positions.size());

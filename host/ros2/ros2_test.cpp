@@ -174,6 +174,7 @@ TEST(Ros2Bridge, PublishesTheBusOverDds) {
   arm::Joints deg = arm::steps_to_joints(arm, steps);
   EXPECT_DOUBLE_EQ(m->position._buffer[2], deg[2] * kPi / 180);
   EXPECT_STREQ(m->name._buffer[6], "finger_left_joint");
+  EXPECT_STREQ(m->header.frame_id, "");
   EXPECT_DOUBLE_EQ(m->position._buffer[6], 0.025);
   dds_return_loan(js.reader, &sample, 1);
   bridge.stop();
