@@ -92,6 +92,8 @@ void Ros2Bridge::stop() {
 }
 
 void Ros2Bridge::publish_joints() {
+  // Stamped when written: a repeat at rest is the current state, and tf2 drops repeated stamps.
+  stamp_ = now_stamp();
   bool ok = writers_.write_joint_states(stamp_, joints_) >= 0;
   ok = writers_.write_tool_pose(stamp_, tool_) >= 0 && ok;
   ++counts_.joint_states;
@@ -128,7 +130,6 @@ void Ros2Bridge::run() {
     bool changed = !have_joints_ || js.positions != joints_.positions;
     joints_ = std::move(js);
     tool_ = tp;
-    stamp_ = now_stamp();  // when the daemon's status reached us: the sample's time
     have_joints_ = true;
     if (changed) {
       last_change = Clock::now();
