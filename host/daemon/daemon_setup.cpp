@@ -27,6 +27,8 @@ bool load_config(const std::string& file, const Overrides& overrides, Config& ou
   parse_daemon_config(top.section("daemon"), out.daemon);
   console::parse_console_config(top.section("console"), out.console);
   parse_operator_config(top.section("operator"), out.op);
+  // The ROS namespace names the arm: the host name until [daemon] has an arm id.
+  ros2::parse_ros2_config(top.section("ros2"), ros2::host_name(), out.ros2);
   top.reject_unknown();  // a misspelt table name must not pass silently
 
   if (!overrides.port.empty()) out.link.port = overrides.port;

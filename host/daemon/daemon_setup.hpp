@@ -10,6 +10,7 @@
 #include "gpio.hpp"
 #include "link.hpp"
 #include "operator_config.hpp"
+#include "ros2_config.hpp"
 #include "vision.hpp"
 
 namespace rbx1::daemon {
@@ -23,6 +24,7 @@ struct Config {
   DaemonConfig daemon;
   console::ConsoleConfig console;
   OperatorConfig op;  // [operator]
+  ros2::Ros2Config ros2;
 };
 
 // Command-line and environment overrides, applied after the file (documented in README.md).

@@ -11,6 +11,7 @@
 #include "console.hpp"
 #include "daemon_setup.hpp"
 #include "machine.hpp"
+#include "ros2_bridge.hpp"
 #include "server.hpp"
 
 namespace {
@@ -107,6 +108,17 @@ int main(int argc, char** argv) {
     spdlog::info("console: listening on {}{}", console->url(),
                  config.console.token.empty() ? " (no token: loopback only)" : " (token required)");
   }
+  // ROS 2 over DDS: one more subscriber of the machine's bus.
+  std::unique_ptr<rbx1::ros2::Ros2Bridge> ros2;
+  if (config.ros2.enabled) {
+    ros2 = std::make_unique<rbx1::ros2::Ros2Bridge>(config.ros2, config.arm);
+    if (ros2->start(machine.bus(), error) < 0) {
+      spdlog::error("{}", error);
+      machine.stop();
+      if (console) console->stop();
+      return 1;
+    }
+  }
   g_server = &server;
   std::signal(SIGTERM, on_signal);
   std::signal(SIGINT, on_signal);
@@ -118,6 +130,7 @@ int main(int argc, char** argv) {
   });
   spdlog::info("shutting down");
   machine.stop();  // ends running jobs, so the console's waiting requests get their replies
+  if (ros2) ros2->stop();
   console_ptr = nullptr;
   if (console) console->stop();
   g_server = nullptr;

@@ -1,0 +1,145 @@
+// ros2_bridge.cpp - the bus to DDS: status -> joint_states + tool_pose at joint_states_hz while moving, 1 Hz at
+// rest; scans -> detections; the URDF once at start.
+#include "ros2_bridge.hpp"
+
+#include <chrono>
+#include <cmath>
+
+#include <spdlog/spdlog.h>
+
+#include "joint_steps.hpp"
+#include "kinematics.hpp"
+#include "urdf.hpp"
+
+namespace rbx1::ros2 {
+
+namespace {
+using Clock = std::chrono::steady_clock;
+constexpr double kPi = 3.14159265358979323846;
+constexpr auto kRestPeriod = std::chrono::seconds(1);
+// After the last change of position the arm counts as moving this long (a status may repeat within a move).
+constexpr auto kMovingHold = std::chrono::seconds(1);
+}  // namespace
+
+bool joint_sample_from_status(const arm::ArmConfig& arm, const nlohmann::json& status, JointSample& joints,
+                              ToolPoseSample& tool) {
+  const nlohmann::json* fw = status.contains("firmware") ? &status["firmware"] : nullptr;
+  if (!fw || !fw->is_object() || !fw->contains("position") || !(*fw)["position"].is_array() ||
+      (*fw)["position"].size() != size_t(arm::kJoints))
+    return false;
+  arm::Steps steps;
+  for (int j = 0; j < arm::kJoints; ++j) steps[j] = (*fw)["position"][j].get<int32_t>();
+  arm::Joints deg = arm::steps_to_joints(arm, steps);  // the exact angles, not status's rounded joints_deg
+  joints.names.assign(arm::kUrdfJointNames.begin(), arm::kUrdfJointNames.end());
+  joints.positions.clear();
+  for (double d : deg) joints.positions.push_back(d * kPi / 180);
+  if (fw->contains("gripper_us") && (*fw)["gripper_us"].is_number()) {
+    joints.names.push_back(arm::kUrdfFingerJoint);
+    joints.positions.push_back(arm::finger_position_m(arm.gripper, (*fw)["gripper_us"].get<int>()));
+  }
+  Eigen::Isometry3d t = arm::fk(arm.links, deg);
+  Eigen::Quaterniond q(t.linear());
+  tool.position_m = {t.translation().x() / 1000, t.translation().y() / 1000, t.translation().z() / 1000};
+  tool.orientation_xyzw = {q.x(), q.y(), q.z(), q.w()};
+  return true;
+}
+
+std::vector<DetectionSample> detections_from_scan(const nlohmann::json& doc) {
+  std::vector<DetectionSample> out;
+  if (!doc.is_object() || !doc.contains("objects") || !doc["objects"].is_array()) return out;
+  for (const nlohmann::json& o : doc["objects"]) {
+    DetectionSample d;
+    d.id = std::to_string(o.value("index", int(out.size())));
+    if (o.contains("label") && o["label"].is_string()) {
+      d.class_id = o["label"].get<std::string>();
+      d.score = o.value("match_score", 0.0);
+    }
+    if (o.contains("centroid_px") && o["centroid_px"].is_array() && o["centroid_px"].size() == 2) {
+      d.cx = o["centroid_px"][0].get<double>();
+      d.cy = o["centroid_px"][1].get<double>();
+    }
+    // The box turned to the grip: x along the closing line, as wide as the opening; y the length that gives the
+    // object's area (the detector reports no box).
+    const nlohmann::json& grip = o.contains("grip") ? o["grip"] : nlohmann::json::object();
+    d.theta = grip.value("angle_deg", 0.0) * kPi / 180;
+    d.size_x = grip.value("opening_px", 0.0);
+    double area = o.value("area_px", 0.0);
+    d.size_y = d.size_x > 0 ? area / d.size_x : 0;
+    out.push_back(d);
+  }
+  return out;
+}
+
+int Ros2Bridge::start(daemon::Bus& bus, std::string& error) {
+  if (writers_.open(config_.domain_id, config_.ns, error) < 0) return -1;
+  if (int r = writers_.write_robot_description(arm::urdf(arm_)); r < 0) {
+    error = std::string("ros2: cannot publish robot_description: ") + dds_strretcode(r);
+    writers_.close();
+    return -1;
+  }
+  sub_ = bus.subscribe(unsigned(daemon::Topic::Status) | unsigned(daemon::Topic::Scans));
+  thread_ = std::thread([this] { run(); });
+  spdlog::info("ros2: publishing rt/{}/{{joint_states,robot_description,detections,tool_pose}} on DDS domain {}",
+               config_.ns, config_.domain_id);
+  return 0;
+}
+
+void Ros2Bridge::stop() {
+  if (sub_) sub_->close();
+  if (thread_.joinable()) thread_.join();
+  sub_.reset();
+  writers_.close();
+}
+
+void Ros2Bridge::publish_joints() {
+  // Stamped when written: a repeat at rest is the current state, and tf2 drops repeated stamps.
+  stamp_ = now_stamp();
+  bool ok = writers_.write_joint_states(stamp_, joints_) >= 0;
+  ok = writers_.write_tool_pose(stamp_, tool_) >= 0 && ok;
+  ++counts_.joint_states;
+  ++counts_.tool_poses;
+  if (!ok) ++counts_.write_errors;
+}
+
+void Ros2Bridge::run() {
+  const auto fast = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / config_.joint_states_hz));
+  Clock::time_point last_pub{}, last_change{};
+  bool job = false;
+  while (!sub_->closed()) {
+    auto now = Clock::now();
+    bool moving = job || now - last_change < kMovingHold;
+    auto due = last_pub + (moving ? fast : kRestPeriod);
+    if (have_joints_ && now >= due) {
+      publish_joints();
+      last_pub = now;
+      continue;
+    }
+    int wait_ms = have_joints_ ? int(std::chrono::ceil<std::chrono::milliseconds>(due - now).count()) : 1000;
+    daemon::BusMessage m;
+    if (!sub_->next(m, std::max(wait_ms, 1))) continue;
+    if (m.topic == daemon::Topic::Scans) {
+      int r = writers_.write_detections(now_stamp(), detections_from_scan(m.body->value("detections", nlohmann::json())));
+      ++counts_.detections;
+      if (r < 0) ++counts_.write_errors;
+      continue;
+    }
+    JointSample js;
+    ToolPoseSample tp;
+    job = m.body->contains("job") && !(*m.body)["job"].is_null();
+    if (!joint_sample_from_status(arm_, *m.body, js, tp)) continue;
+    bool changed = !have_joints_ || js.positions != joints_.positions;
+    joints_ = std::move(js);
+    tool_ = tp;
+    have_joints_ = true;
+    if (changed) {
+      last_change = Clock::now();
+      // A new position goes out at once unless that would exceed the rate; the timer sends it otherwise.
+      if (Clock::now() - last_pub >= fast) {
+        publish_joints();
+        last_pub = Clock::now();
+      }
+    }
+  }
+}
+
+}  // namespace rbx1::ros2
