@@ -47,6 +47,7 @@ bench: host firmware
 
 fuzz: deps
 	@protocol/fuzz/run $(FUZZ_SECONDS)
+	@host/mqtt/fuzz/run $(FUZZ_SECONDS)
 
 demo: host firmware
 	@tools/demo

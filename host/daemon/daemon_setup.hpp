@@ -9,6 +9,7 @@
 #include "frame_source.hpp"
 #include "gpio.hpp"
 #include "link.hpp"
+#include "mqtt_config.hpp"
 #include "operator_config.hpp"
 #include "vision.hpp"
 
@@ -23,6 +24,7 @@ struct Config {
   DaemonConfig daemon;
   console::ConsoleConfig console;
   OperatorConfig op;  // [operator]
+  mqtt::MqttConfig mqtt;
 };
 
 // Command-line and environment overrides, applied after the file (documented in README.md).
