@@ -17,6 +17,12 @@ bool valid_id(const nlohmann::json& id) {
     if (c < 0x20 || c == 0x7f) return false;
   return true;
 }
+
+std::string fmt_seconds(double s) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.0f", s);
+  return buf;
+}
 }  // namespace
 
 bool parse_iso_utc(const std::string& text, double& seconds) {
@@ -83,9 +89,9 @@ std::string stale_reason(const Incoming& in, bool retained, double now_s, double
     return "";
   }
   double age = now_s - *in.ts;
-  if (age > max_age_s) return "sent " + std::to_string(long(age)) + " s ago (mqtt.max_age_s " +
-                              std::to_string(long(max_age_s)) + ")";
-  if (age < -max_age_s) return "\"ts\" is " + std::to_string(long(-age)) + " s in the future: check the clocks";
+  // Whole seconds, printed as doubles: a ts of 1e300 must not overflow a conversion to an integer.
+  if (age > max_age_s) return "sent " + fmt_seconds(age) + " s ago (mqtt.max_age_s " + fmt_seconds(max_age_s) + ")";
+  if (age < -max_age_s) return "\"ts\" is " + fmt_seconds(-age) + " s in the future: check the clocks";
   return "";
 }
 

@@ -112,6 +112,8 @@ TEST(CommandDecode, StaleRule) {
   EXPECT_EQ(mqtt::stale_reason(in, false, 1000, 30, true), "");  // a fresh ts counts even right after a reconnect
   in.ts = 1000 + 60;
   EXPECT_NE(mqtt::stale_reason(in, false, 1000, 30, false), "");
+  in.ts = 1.7e101;  // found by the fuzzer: the age once went through a conversion to long (undefined behaviour)
+  EXPECT_EQ(mqtt::stale_reason(in, false, 1000, 30, false).rfind("\"ts\" is 1", 0), 0u);
 }
 
 // Randomized: mutations of valid commands and random bytes never throw, and end as a request or a known error.
