@@ -182,13 +182,13 @@ TEST(ReplayCache, BoundedAndKeepsRunningOnes) {
 
 TEST(StateView, ModeProgressAndPicks) {
   mqtt::StateView v("arm1");
-  v.on_status({{"ready", true}, {"job", nullptr}, {"firmware", {{"state", "idle"}}}, {"seq", 1}, {"topic", "status"}});
+  v.on_status({{"ready", true}, {"job", nullptr}, {"firmware", {{"state", "IDLE"}}}, {"seq", 1}, {"topic", "status"}});
   EXPECT_EQ(v.document()["mode"], "ready");
   EXPECT_FALSE(v.document().contains("seq"));
   EXPECT_TRUE(v.changed());
   v.take();
   EXPECT_FALSE(v.changed());
-  v.on_status({{"ready", true}, {"job", nullptr}, {"firmware", {{"state", "idle"}}}, {"seq", 2}, {"topic", "status"}});
+  v.on_status({{"ready", true}, {"job", nullptr}, {"firmware", {{"state", "IDLE"}}}, {"seq", 2}, {"topic", "status"}});
   EXPECT_FALSE(v.changed());  // only seq differs
   EXPECT_TRUE(v.on_event({{"req", 3}, {"cmd", "pick"}, {"event", "grasp"}}, 0).is_null());
   EXPECT_EQ(v.document()["progress"]["event"], "grasp");
@@ -196,8 +196,10 @@ TEST(StateView, ModeProgressAndPicks) {
   EXPECT_EQ(pick["result"]["placed"], true);
   EXPECT_EQ(v.document()["picks_today"], 1);
   EXPECT_TRUE(v.document()["progress"].is_null());
-  v.on_status({{"ready", false}, {"job", nullptr}, {"firmware", {{"state", "estop"}}}});
+  v.on_status({{"ready", false}, {"job", nullptr}, {"firmware", {{"state", "FAULT"}, {"faults", {"ESTOP_COMMAND"}}}}});
   EXPECT_EQ(v.document()["mode"], "estop");
+  v.on_status({{"ready", false}, {"job", nullptr}, {"firmware", {{"state", "FAULT"}, {"faults", {"LIMIT_HIT"}}}}});
+  EXPECT_EQ(v.document()["mode"], "fault");
 }
 
 TEST(HaDiscovery, OneDeviceWithAvailability) {

@@ -4,11 +4,14 @@
 namespace rbx1::mqtt {
 
 std::string mode_of(const nlohmann::json& s) {
-  std::string fw;
-  if (auto f = s.find("firmware"); f != s.end() && f->is_object())
-    if (auto st = f->find("state"); st != f->end() && st->is_string()) fw = st->get<std::string>();
-  if (fw == "fault") return "fault";
-  if (fw == "estop") return "estop";
+  // The firmware's status (motion.cpp status_json): state "FAULT" with faults such as "ESTOP_COMMAND".
+  auto f = s.find("firmware");
+  if (f != s.end() && f->is_object() && f->value("state", nlohmann::json()) == "FAULT") {
+    if (auto faults = f->find("faults"); faults != f->end() && faults->is_array())
+      for (const auto& x : *faults)
+        if (x.is_string() && x.get<std::string>().rfind("ESTOP", 0) == 0) return "estop";
+    return "fault";
+  }
   if (auto j = s.find("job"); j != s.end() && !j->is_null()) return "busy";
   if (auto r = s.find("ready"); r != s.end() && r->is_boolean() && r->get<bool>()) return "ready";
   return "not_ready";

@@ -78,6 +78,11 @@ def test_three_arms_on_one_broker(tmp_path, broker):
         assert code == 3 and "offline" in err, (code, out, err)
         code, out, err = mqttkit.cell(broker, "send", "arm2", '{"cmd":"status"}', timeout=30)
         assert code == 0 and mqttkit.reply_of(out)["result"]["ready"], (out, err)
+        # A stop over MQTT (a protective stop, not an emergency stop) latches on that arm only, shown in its state.
+        code, out, err = mqttkit.cell(broker, "send", "arm1", '{"cmd":"estop"}', timeout=30)
+        assert code == 0 and mqttkit.reply_of(out)["result"]["estop"], (out, err)
+        watch.wait(lambda t, p, r: t == "rbx1/arm1/state" and json.loads(p)["mode"] == "estop", what="arm1 estop")
+        assert json.loads(watch.last("rbx1/arm2/state"))["mode"] == "ready"
     finally:
         watch.close()
         for sim, d in arms.values():
