@@ -296,7 +296,7 @@ double now_s() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
-struct Cell : ::testing::Test {
+struct MqttCell : ::testing::Test {
   Broker broker{false};
   FakeArm arm;
   daemon::Bus bus;
@@ -316,7 +316,7 @@ struct Cell : ::testing::Test {
 
 }  // namespace
 
-TEST_F(Cell, SecurityAnonymousRefusedViewerReadsOnlyArmStaysUnderItsPrefix) {
+TEST_F(MqttCell, SecurityAnonymousRefusedViewerReadsOnlyArmStaysUnderItsPrefix) {
   start();
   Client anonymous(broker.port(), nullptr, nullptr, "anon");
   EXPECT_NE(anonymous.connack(), 0);
@@ -349,7 +349,7 @@ TEST_F(Cell, SecurityAnonymousRefusedViewerReadsOnlyArmStaysUnderItsPrefix) {
   EXPECT_EQ(viewer.count("rbx1/arm2/cmd"), 0u);
 }
 
-TEST_F(Cell, RepliesOnResponseTopicOrCmdResponseWithId) {
+TEST_F(MqttCell, RepliesOnResponseTopicOrCmdResponseWithId) {
   start();
   Client c(broker.port(), "arm1", "arm1-secret", "dash");  // may read and write under rbx1/arm1
   ASSERT_EQ(c.connack(), 0);
@@ -366,7 +366,7 @@ TEST_F(Cell, RepliesOnResponseTopicOrCmdResponseWithId) {
   EXPECT_EQ(json::parse(h->payload), (json{{"id", "h-1"}, {"result", {{"homed", true}}}}));
 }
 
-TEST_F(Cell, AtMostOncePerIdAndStaleCommandsRefused) {
+TEST_F(MqttCell, AtMostOncePerIdAndStaleCommandsRefused) {
   start();
   Client c(broker.port(), "controller", "controller-secret", "ctl");
   ASSERT_EQ(c.connack(), 0);
@@ -392,7 +392,7 @@ TEST_F(Cell, AtMostOncePerIdAndStaleCommandsRefused) {
   ASSERT_TRUE(eventually([&] { return arm.runs("estop") == 1; }));
 }
 
-TEST_F(Cell, GarbageGetsAnErrorReplyAndNeverStalls) {
+TEST_F(MqttCell, GarbageGetsAnErrorReplyAndNeverStalls) {
   start();
   Client c(broker.port(), "controller", "controller-secret", "ctl");
   ASSERT_EQ(c.connack(), 0);
@@ -424,7 +424,7 @@ TEST_F(Cell, GarbageGetsAnErrorReplyAndNeverStalls) {
   EXPECT_EQ(json::parse(ok->payload)["id"], "after");
 }
 
-TEST_F(Cell, StateRetainedOnChangeAtMostStateRate) {
+TEST_F(MqttCell, StateRetainedOnChangeAtMostStateRate) {
   start();
   Client c(broker.port(), "viewer", "viewer-secret", "viewer");
   ASSERT_EQ(c.connack(), 0);
@@ -468,7 +468,7 @@ TEST_F(Cell, StateRetainedOnChangeAtMostStateRate) {
   ASSERT_TRUE(eventually([&] { return json::parse(late.messages().back().payload)["picks_today"] == 1; }));
 }
 
-TEST_F(Cell, BrokerRestartReconnectsAndRepublishes) {
+TEST_F(MqttCell, BrokerRestartReconnectsAndRepublishes) {
   start();
   bus.publish(daemon::Topic::Status, {{"ready", true}, {"job", nullptr}});
   broker.stop();
@@ -490,7 +490,7 @@ TEST_F(Cell, BrokerRestartReconnectsAndRepublishes) {
   EXPECT_EQ(json::parse(state->payload)["mode"], "ready");
 }
 
-TEST_F(Cell, CommandWithoutTsRightAfterReconnectIsStale) {
+TEST_F(MqttCell, CommandWithoutTsRightAfterReconnectIsStale) {
   auto cfg = arm_config(broker);
   iface = std::make_unique<mqtt::MqttInterface>(cfg, "arm1", bus, arm.handler());
   Client c(broker.port(), "controller", "controller-secret", "ctl");
@@ -511,7 +511,7 @@ TEST_F(Cell, CommandWithoutTsRightAfterReconnectIsStale) {
   EXPECT_EQ(json::parse(r->payload)["result"]["homed"], true);
 }
 
-TEST_F(Cell, HomeAssistantDiscoveryRetainedAndRepublished) {
+TEST_F(MqttCell, HomeAssistantDiscoveryRetainedAndRepublished) {
   auto cfg = arm_config(broker);
   cfg.homeassistant = true;
   start(cfg);
@@ -525,7 +525,7 @@ TEST_F(Cell, HomeAssistantDiscoveryRetainedAndRepublished) {
   ASSERT_TRUE(eventually([&] { return ha.count("homeassistant/button/arm1/stop/config") == 1; }));
 }
 
-TEST(CellTls, ConnectsWithTheTestCa) {
+TEST(MqttTls, ConnectsWithTheTestCa) {
   Broker broker(true);
   FakeArm arm;
   daemon::Bus bus;
