@@ -546,3 +546,23 @@ TEST(MqttTls, ConnectsWithTheTestCa) {
   auto off = c.wait([](const Message& m) { return m.payload == "offline"; });
   EXPECT_TRUE(off) << "stop() must leave offline (retained) behind";
 }
+
+// A broker that is not there yet never holds up the daemon's start; the interface connects once it comes.
+TEST_F(MqttCell, StartsWithoutTheBrokerAndConnectsWhenItComes) {
+  broker.stop();
+  iface = std::make_unique<mqtt::MqttInterface>(arm_config(broker), "arm1", bus, arm.handler());
+  std::string error;
+  auto t0 = std::chrono::steady_clock::now();
+  ASSERT_EQ(iface->start(error), 0) << error;
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, 500ms);
+  std::this_thread::sleep_for(1500ms);
+  EXPECT_FALSE(iface->connected());
+  broker.start();
+  ASSERT_TRUE(eventually([&] { return iface->connected(); }, 15s));
+  Client c(broker.port(), "viewer", "viewer-secret", "viewer");
+  ASSERT_EQ(c.connack(), 0);
+  c.subscribe("rbx1/arm1/status");
+  auto s = c.wait_topic("rbx1/arm1/status");
+  ASSERT_TRUE(s);
+  EXPECT_EQ(s->payload, "online");
+}
