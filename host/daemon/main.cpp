@@ -1,7 +1,5 @@
 // main.cpp - rbx1d: reads the config, prepares the arm, serves the control socket until shutdown or a signal.
 #include <atomic>
-#include <chrono>
-#include <thread>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -100,7 +98,7 @@ int main(int argc, char** argv) {
         [&machine](const rbx1::daemon::Request& r, std::shared_ptr<rbx1::daemon::Reply> reply) {
           machine.handle(r, std::move(reply));
         },
-        machine.camera(), config.daemon.job_timeout_s, nlohmann::json{{"places", places}});
+        machine.bus(), machine.camera(), config.daemon.job_timeout_s, nlohmann::json{{"places", places}});
     if (console->start(error) < 0) {
       spdlog::error("{}", error);
       machine.stop();
@@ -111,29 +109,15 @@ int main(int argc, char** argv) {
                  config.console.token.empty() ? " (no token: loopback only)" : " (token required)");
   }
   // MQTT: a subscriber of the daemon's bus and a client of the same handler as the socket.
-  // Until Machine::bus() lands (issue 22): a bus of main's own, fed with the status on change (polled every 250 ms).
-  rbx1::daemon::Bus status_bus;
-  std::atomic<bool> feeding{true};
-  std::thread status_feed;
   std::unique_ptr<rbx1::mqtt::MqttInterface> mqtt;
   if (config.mqtt.enabled) {
-    status_feed = std::thread([&] {
-      nlohmann::json last;
-      while (feeding) {
-        auto f = machine.call(rbx1::daemon::Command::Status, 1000);
-        if (f.is_object() && f.contains("result") && f["result"] != last) status_bus.publish(rbx1::daemon::Topic::Status, last = f["result"]);
-        std::this_thread::sleep_for(std::chrono::milliseconds(250));
-      }
-    });
     mqtt = std::make_unique<rbx1::mqtt::MqttInterface>(
-        config.mqtt, config.daemon.arm_id, status_bus,
+        config.mqtt, config.daemon.arm_id, machine.bus(),
         [&machine](const rbx1::daemon::Request& r, std::shared_ptr<rbx1::daemon::Reply> reply) {
           machine.handle(r, std::move(reply));
         });
     if (mqtt->start(error) < 0) {
       spdlog::error("{}", error);
-      feeding = false;
-      status_feed.join();
       machine.stop();
       if (console) console->stop();
       return 1;
@@ -152,8 +136,6 @@ int main(int argc, char** argv) {
   });
   spdlog::info("shutting down");
   machine.stop();  // ends running jobs, so the console's waiting requests get their replies
-  feeding = false;
-  if (status_feed.joinable()) status_feed.join();
   if (mqtt) mqtt->stop();  // after the jobs: their final replies still go out; then "offline"
   console_ptr = nullptr;
   if (console) console->stop();

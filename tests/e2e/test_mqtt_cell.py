@@ -13,9 +13,8 @@ import rbx1e2e as e2e
 from conftest import fast_config
 
 ARMS = ["arm1", "arm2", "arm3"]
-# Job events reach MQTT through the daemon's bus (Machine::bus(), issue 22); until it is merged rbx1d feeds the
-# interface's bus with status only, and the event/pick topics stay empty.
-EVENTS_FROM_BUS = False
+# Job events reach MQTT through the daemon's bus (Machine::bus()).
+EVENTS_FROM_BUS = True
 
 
 @pytest.fixture
