@@ -45,9 +45,11 @@ bench: host firmware
 	@tools/bench/bus
 	@tools/bench/console-live
 	@tools/bench/world
+	@tools/bench/mqtt
 
 fuzz: deps
 	@protocol/fuzz/run $(FUZZ_SECONDS)
+	@host/mqtt/fuzz/run $(FUZZ_SECONDS)
 
 demo: host firmware
 	@tools/demo

@@ -1,6 +1,10 @@
 // daemon_config.cpp - reads and range-checks the [daemon] table.
 #include "daemon_config.hpp"
 
+#include <cctype>
+#include <cstring>
+
+#include <unistd.h>
 
 namespace rbx1::daemon {
 
@@ -12,7 +16,24 @@ bool printable(const std::string& s) {
     if (c < 0x20 || c == 0x7f) return false;
   return true;
 }
+
+// An arm_id is one topic level and one ROS 2 name part: letters, digits, '_' and '-'.
+bool valid_arm_id(const std::string& s) {
+  if (s.empty() || s.size() > 64) return false;
+  for (unsigned char c : s)
+    if (!(isalnum(c) || c == '_' || c == '-')) return false;
+  return true;
+}
 }  // namespace
+
+std::string default_arm_id() {
+  char host[256] = {};
+  if (gethostname(host, sizeof host - 1) != 0 || !host[0]) return "rbx1";
+  std::string id(host, strnlen(host, 64));
+  for (char& c : id)
+    if (!(isalnum((unsigned char)c) || c == '_' || c == '-')) c = '_';
+  return id;
+}
 
 void parse_daemon_config(config::Section s, DaemonConfig& out) {
   out.socket = s.string("socket", out.socket);
@@ -40,6 +61,10 @@ void parse_daemon_config(config::Section s, DaemonConfig& out) {
   out.pick_retries = int(s.integer("pick_retries", out.pick_retries, 0, 3));
   out.state_dir = s.string("state_dir", out.state_dir);
   if (out.state_dir.empty()) s.errors().add(s.path() + ".state_dir", "must be a folder path");
+  out.arm_id = s.string("arm_id", out.arm_id.empty() ? default_arm_id() : out.arm_id);
+  if (!valid_arm_id(out.arm_id))
+    s.errors().add(s.path() + ".arm_id", "must be 1..64 letters, digits, '_' or '-' (it names the arm's MQTT topics), got \"" +
+                                             out.arm_id + "\"");
   s.reject_unknown();
 }
 

@@ -23,7 +23,11 @@ struct DaemonConfig {
   bool verify_pick = false;         // after a pick, scan again: the object still there is a pick_failed (pick_check.cpp)
   int pick_retries = 1;             // with verify_pick: picks again this often, each from a fresh detection
   std::string state_dir = "/var/lib/rbx1";  // what the operator taught (state_dir.hpp); overrides the file's values
+  std::string arm_id;               // the arm's name to the outside (MQTT prefix, ROS 2 namespace); default: host name
 };
+
+// The host name with anything but [A-Za-z0-9_-] made '_': arm_id's default.
+std::string default_arm_id();
 
 void parse_daemon_config(config::Section daemon, DaemonConfig& out);
 

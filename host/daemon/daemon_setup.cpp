@@ -27,8 +27,8 @@ bool load_config(const std::string& file, const Overrides& overrides, Config& ou
   parse_daemon_config(top.section("daemon"), out.daemon);
   console::parse_console_config(top.section("console"), out.console);
   parse_operator_config(top.section("operator"), out.op);
-  // The ROS namespace names the arm: the host name until [daemon] has an arm id.
-  ros2::parse_ros2_config(top.section("ros2"), ros2::host_name(), out.ros2);
+  ros2::parse_ros2_config(top.section("ros2"), out.daemon.arm_id, out.ros2);  // the ROS namespace names the arm
+  mqtt::parse_mqtt_config(top.section("mqtt"), out.daemon.arm_id, out.mqtt);
   top.reject_unknown();  // a misspelt table name must not pass silently
 
   if (!overrides.port.empty()) out.link.port = overrides.port;
@@ -58,6 +58,7 @@ bool load_config(const std::string& file, const Overrides& overrides, Config& ou
   resolve(out.vision.library_path, dir);
   resolve(out.vision.calibration_path, dir);
   resolve(out.daemon.state_dir, dir);
+  for (std::string* p : {&out.mqtt.password_file, &out.mqtt.ca_file, &out.mqtt.cert_file, &out.mqtt.key_file}) resolve(*p, dir);
   if (!overrides.state_dir.empty()) out.daemon.state_dir = fs::absolute(overrides.state_dir).lexically_normal().string();
   return errors.ok();
 }
@@ -70,6 +71,14 @@ bool check_files(const Config& config, config::Errors& errors) {
                                   {"vision.calibration", v.calibration_path}})
     if (!path.empty() && !fs::exists(path)) errors.add(key, path + ": no such file");
   if (errors.ok() && !vision::Vision::create(v, error)) errors.add("vision", error);
+  const auto& m = config.mqtt;
+  if (m.enabled) {
+    for (const auto& [key, path] : {std::pair<const char*, const std::string&>{"mqtt.ca_file", m.ca_file},
+                                    {"mqtt.cert_file", m.cert_file}, {"mqtt.key_file", m.key_file}})
+      if (!path.empty() && !fs::exists(path)) errors.add(key, path + ": no such file");
+    std::string password;
+    if (!mqtt::read_password(m, password, error)) errors.add("mqtt.password_file", error.substr(error.find(' ') + 1));
+  }
   const std::string& dev = config.camera.device;
   if (dev.rfind("/dev/", 0) == 0) {
     if (!fs::exists(dev)) errors.add("camera.device", dev + ": no such device");

@@ -9,6 +9,7 @@
 #include "frame_source.hpp"
 #include "gpio.hpp"
 #include "link.hpp"
+#include "mqtt_config.hpp"
 #include "operator_config.hpp"
 #include "ros2_config.hpp"
 #include "vision.hpp"
@@ -25,6 +26,7 @@ struct Config {
   console::ConsoleConfig console;
   OperatorConfig op;  // [operator]
   ros2::Ros2Config ros2;
+  mqtt::MqttConfig mqtt;
 };
 
 // Command-line and environment overrides, applied after the file (documented in README.md).

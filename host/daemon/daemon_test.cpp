@@ -139,6 +139,35 @@ TEST(DaemonConfig, PickCheck) {
   EXPECT_EQ(defaults.pick_retries, 1);
 }
 
+// [daemon] arm_id names the arm outside: the host name by default; [mqtt] prefix and client_id follow it.
+TEST(DaemonConfig, ArmIdAndTheMqttTable) {
+  auto dir = std::filesystem::temp_directory_path() / ("rbx1-arm-id-" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  auto load = [&](const std::string& text, Config& c) {
+    auto file = dir / "rbx1.toml";
+    std::ofstream(file) << "[camera]\ndevice = \"x.png\"\n" << text;
+    config::Errors errors;
+    Overrides o;
+    o.port = "/dev/null";
+    load_config(file.string(), o, c, errors);
+    return errors.joined();
+  };
+  Config c;
+  EXPECT_EQ(load("[daemon]\narm_id = \"cell-a\"\n[mqtt]\nenabled = true\nusername = \"cell-a\"\n"
+                 "password_file = \"mqtt.pw\"\n", c), "");
+  EXPECT_EQ(c.mqtt.prefix, "rbx1/cell-a");
+  EXPECT_EQ(c.mqtt.client_id, "cell-a");
+  EXPECT_EQ(c.mqtt.password_file, (dir / "mqtt.pw").string());  // relative to the config file
+  Config d;
+  EXPECT_EQ(load("", d), "");
+  EXPECT_EQ(d.daemon.arm_id, default_arm_id());
+  EXPECT_FALSE(d.daemon.arm_id.empty());
+  Config e;
+  std::string bad = load("[daemon]\narm_id = \"a/b\"\n", e);
+  EXPECT_EQ(bad.rfind("daemon.arm_id: must be 1..64 letters", 0), 0u) << bad;
+  std::filesystem::remove_all(dir);
+}
+
 extern char** environ;
 
 namespace {

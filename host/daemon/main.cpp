@@ -11,6 +11,7 @@
 #include "console.hpp"
 #include "daemon_setup.hpp"
 #include "machine.hpp"
+#include "mqtt_interface.hpp"
 #include "ros2_bridge.hpp"
 #include "server.hpp"
 
@@ -119,6 +120,24 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
+  // MQTT: a subscriber of the daemon's bus and a client of the same handler as the socket.
+  std::unique_ptr<rbx1::mqtt::MqttInterface> mqtt;
+  if (config.mqtt.enabled) {
+    mqtt = std::make_unique<rbx1::mqtt::MqttInterface>(
+        config.mqtt, config.daemon.arm_id, machine.bus(),
+        [&machine](const rbx1::daemon::Request& r, std::shared_ptr<rbx1::daemon::Reply> reply) {
+          machine.handle(r, std::move(reply));
+        });
+    if (mqtt->start(error) < 0) {
+      spdlog::error("{}", error);
+      if (ros2) ros2->stop();
+      machine.stop();
+      if (console) console->stop();
+      return 1;
+    }
+    spdlog::info("mqtt: {}:{} as {}, topics under {}/", config.mqtt.host, config.mqtt.port, config.mqtt.client_id,
+                 config.mqtt.prefix);
+  }
   g_server = &server;
   std::signal(SIGTERM, on_signal);
   std::signal(SIGINT, on_signal);
@@ -131,6 +150,7 @@ int main(int argc, char** argv) {
   spdlog::info("shutting down");
   machine.stop();  // ends running jobs, so the console's waiting requests get their replies
   if (ros2) ros2->stop();
+  if (mqtt) mqtt->stop();  // after the jobs: their final replies still go out; then "offline"
   console_ptr = nullptr;
   if (console) console->stop();
   g_server = nullptr;
