@@ -1,6 +1,6 @@
 # Top-level entry points. Every target installs what it needs first (tools/install-deps is quiet when done).
 # Host code builds with CMake+Ninja into build/cmake, binaries into build/bin; the AVR firmware into build/firmware.
-.PHONY: all deps host firmware test sanitize bench fuzz demo flash deb clean soak
+.PHONY: all deps configure host programs firmware test sanitize bench fuzz demo flash deb clean soak
 
 BUILD      := build
 CMAKE_DIR  := $(BUILD)/cmake
@@ -17,9 +17,18 @@ all: host firmware
 deps:
 	@tools/install-deps
 
-host: deps
+configure: deps
 	@cmake -S . -B $(CMAKE_DIR) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+
+# Everything CMake builds: the programs, the test and benchmark executables.
+host: configure
 	@cmake --build $(CMAKE_DIR) -j $(JOBS)
+
+# The programs alone (what the demo and the package run), no test or benchmark executable: a first build in
+# minutes. `make test` builds the rest.
+PROGRAMS := rbx1 rbx1d rbx1-simfw rbx1-world
+programs: configure
+	@cmake --build $(CMAKE_DIR) -j $(JOBS) --target $(PROGRAMS)
 
 firmware: deps
 	@tools/build-firmware
@@ -48,7 +57,7 @@ bench: host firmware
 fuzz: deps
 	@protocol/fuzz/run $(FUZZ_SECONDS)
 
-demo: host firmware
+demo: programs firmware
 	@tools/demo
 	@echo
 	@tools/demo --world
@@ -62,7 +71,7 @@ flash: firmware
 	@tools/flash $(PORT)
 
 # build/deb/rbx1_VERSION_ARCH.deb: the host side as a Debian package (tools/deb/README.md).
-deb: host firmware
+deb: programs firmware
 	@tools/deb/build-deb
 
 clean:
