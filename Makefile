@@ -83,7 +83,7 @@ deb: programs firmware
 endif
 
 # arm64 (tools/cross/README.md): the cross compiler and emulator, the arm64 library root build/arm64-sysroot, the
-# programs cross-built into build/arm64/bin (niced: the machine is shared; the same optimisation as here, without
+# programs cross-built into build/arm64/cmake/bin (niced: the machine is shared; the same optimisation as here, without
 # the debug information the package strips anyway: a quarter less compile time), and their checks under qemu against
 # this machine's build (detections, a whole pick against rbx1-simfw).
 deps-arm64: deps
