@@ -13,10 +13,34 @@ namespace rbx1::link {
 
 bool supported_baud(int baud) { return baud == 115200 || baud == 230400 || baud == 250000; }
 
+namespace {
+// The classic termios rate of a baud, 0 when it has none (250000: termios2 only).
+speed_t classic_rate(int baud) { return baud == 115200 ? B115200 : baud == 230400 ? B230400 : 0; }
+
+// Where the termios2 ioctls are missing (ENOSYS: qemu-user 7.2, which tools/cross/test-arm64 runs rbx1d under;
+// every Linux kernel has them): the same raw mode with the classic ioctls, for the rates they can name.
+int configure_classic(int fd, int baud) {
+  speed_t rate = classic_rate(baud);
+  struct termios t;
+  if (rate == 0) return -ENOSYS;
+  if (ioctl(fd, TCGETS, &t) < 0) return -errno;
+  t.c_iflag &= ~(IGNBRK | BRKINT | PARMRK | ISTRIP | INLCR | IGNCR | ICRNL | IXON | IXOFF | IXANY);
+  t.c_oflag &= ~OPOST;
+  t.c_lflag &= ~(ECHO | ECHONL | ICANON | ISIG | IEXTEN);
+  t.c_cflag &= ~(CSIZE | PARENB | CSTOPB | CRTSCTS | HUPCL | CBAUD);
+  t.c_cflag |= CS8 | CREAD | CLOCAL | rate;
+  t.c_cc[VMIN] = 1;
+  t.c_cc[VTIME] = 0;
+  if (ioctl(fd, TCSETS, &t) < 0) return -errno;
+  ioctl(fd, TCFLSH, TCIOFLUSH);
+  return 0;
+}
+}  // namespace
+
 int configure_serial(int fd, int baud) {
   if (!supported_baud(baud)) return -EINVAL;
   struct termios2 t;
-  if (ioctl(fd, TCGETS2, &t) < 0) return -errno;
+  if (ioctl(fd, TCGETS2, &t) < 0) return errno == ENOSYS ? configure_classic(fd, baud) : -errno;
   // cfmakeraw() by hand: no input/output processing, no echo, no signals, 8 data bits, no parity.
   t.c_iflag &= ~(IGNBRK | BRKINT | PARMRK | ISTRIP | INLCR | IGNCR | ICRNL | IXON | IXOFF | IXANY);
   t.c_oflag &= ~OPOST;
@@ -33,7 +57,13 @@ int configure_serial(int fd, int baud) {
 
 int serial_baud(int fd) {
   struct termios2 t;
-  if (ioctl(fd, TCGETS2, &t) < 0) return -errno;
+  if (ioctl(fd, TCGETS2, &t) < 0) {
+    if (errno != ENOSYS) return -errno;
+    struct termios c;  // the classic ioctls (configure_classic)
+    if (ioctl(fd, TCGETS, &c) < 0) return -errno;
+    speed_t rate = c.c_cflag & CBAUD;
+    return rate == B115200 ? 115200 : rate == B230400 ? 230400 : -ENOSYS;
+  }
   return static_cast<int>(t.c_ospeed);
 }
 

@@ -5,6 +5,7 @@ packaged rbx1-flash uploading to the simulated board, `dpkg -r` keeping the stat
 it. Leaves the machine as it found it. Env: RBX1_SOURCE_DIR, AVRBOARD."""
 import fcntl
 import grp
+import gzip
 import os
 import pwd
 import re
@@ -18,7 +19,9 @@ AVRBOARD = os.environ.get("AVRBOARD", os.path.join(SRC, "build", "bin", "rbx1-av
 FILES = ["/usr/bin/rbx1d", "/usr/bin/rbx1", "/usr/bin/rbx1-harness", "/usr/bin/rbx1-flash",
          "/usr/share/rbx1/firmware/rbx1.hex", "/usr/share/rbx1/python/rbx1_harness/cli.py",
          "/usr/share/rbx1/python/rbx1proto/link.py", "/lib/systemd/system/rbx1d.service",
-         "/lib/udev/rules.d/99-rbx1.rules", "/etc/rbx1/rbx1.toml", "/usr/share/doc/rbx1/copyright"]
+         "/lib/udev/rules.d/99-rbx1.rules", "/etc/rbx1/rbx1.toml", "/usr/share/doc/rbx1/copyright",
+         "/usr/share/man/man1/rbx1.1.gz", "/usr/share/man/man8/rbx1d.8.gz", "/usr/share/man/man1/rbx1-flash.1.gz",
+         "/usr/share/man/man1/rbx1-harness.1.gz"]
 
 
 def run(*cmd, check=True, **kw):
@@ -79,7 +82,7 @@ def test_contents_and_dependencies(deb):
     assert conffiles == ["/etc/rbx1/rbx1.toml"], conffiles
 
 
-def test_lintian_reports_no_error(deb):
+def test_lintian_reports_no_error_or_warning(deb):
     r = run("lintian", "--tag-display-limit", "0", deb, check=False, timeout=300)
     tags = r.stdout.splitlines()
     errors = [t for t in tags if t.startswith("E:")]
@@ -88,6 +91,22 @@ def test_lintian_reports_no_error(deb):
     for t in tags:
         print("  " + t)
     assert not errors and r.returncode == 0, r.stdout + r.stderr
+    warnings = [t for t in tags if t.startswith("W:")]
+    assert not warnings, "\n".join(warnings)
+
+
+def test_man_pages_say_what_help_says(deb, tmp_path):
+    """help2man made them from the programs' --help: every option rbx1d and rbx1 print, and each rbx1 command."""
+    run("dpkg-deb", "-x", deb, str(tmp_path))
+    for page, exe in (("man8/rbx1d.8.gz", "rbx1d"), ("man1/rbx1.1.gz", "rbx1")):
+        with gzip.open(tmp_path / "usr" / "share" / "man" / page, "rt") as f:
+            text = f.read()
+        shown = run(os.path.join(SRC, "build", "bin", exe), "--help").stdout
+        for option in set(re.findall(r"(?<![\w-])--[a-z][a-z-]+", shown)):
+            assert option.replace("-", "\\-") in text, f"{option} of {exe} --help not in {page}"
+        if exe == "rbx1":
+            for command in re.findall(r"^  ([a-z][a-z-]*)  ", shown.split("Subcommands:")[1], re.M):
+                assert f".SS {command}\n" in text, f"rbx1 {command} not in {page}"
 
 
 @pytest.fixture
