@@ -13,6 +13,7 @@
 #include <spdlog/spdlog.h>
 
 #include "command_decode.hpp"
+#include "command_table.hpp"
 #include "ha_discovery.hpp"
 
 namespace rbx1::mqtt {
@@ -187,15 +188,19 @@ void MqttInterface::command(const mosquitto_message* msg, const mosquitto_proper
   if (!decode_command({static_cast<const char*>(msg->payload), size_t(msg->payloadlen)}, in, err))
     return refuse(to, err.code, err.message);
   to.id = in.id;
-  // A stop is never stale and never a repeat: stopping again is always safe, and it must not wait.
-  bool stop = in.cmd == "estop";
+  // Who may call what comes from the command table: a stop is never stale and never a repeat (stopping again is
+  // always safe, and it must not wait); socket-only commands and the socket's own subscribe are refused.
+  const daemon::CommandSpec* spec = daemon::find_command(in.cmd);
+  bool stop = spec && spec->access == daemon::Access::Estop;
   std::string key;
   if (!stop) {
     bool just_connected = steady_s() - connected_at_s_ < kReconnectGraceS;
     if (auto why = stale_reason(in, msg->retain, wall_s(), config_.max_age_s, just_connected); !why.empty())
       return refuse(to, "stale", why);
-    if (in.cmd == "shutdown")
-      return refuse(to, "not_allowed", "shutdown is not taken over MQTT (the control socket or systemctl stop rbx1d)");
+    if (spec && spec->access == daemon::Access::Local)
+      return refuse(to, "not_allowed", in.cmd + " is not taken over MQTT (the control socket or systemctl stop rbx1d)");
+    if (spec && spec->command == daemon::Command::Subscribe)
+      return refuse(to, "not_allowed", "the bus is already on " + config_.prefix + "/state, /event and /scan");
     if (!in.id.is_null()) {
       key = in.id.dump();
       std::string first;
