@@ -44,6 +44,7 @@ bench: host firmware
 	@tools/bench/daemon-latency
 	@tools/bench/console-live
 	@tools/bench/world
+	@tools/bench/history
 
 fuzz: deps
 	@protocol/fuzz/run $(FUZZ_SECONDS)

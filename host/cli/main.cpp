@@ -13,6 +13,7 @@ int main(int argc, char** argv) {
   rbx1::cli::add_calibrate_commands(app, exit_code);
   rbx1::cli::add_daemon_commands(app, exit_code);
   rbx1::cli::add_operator_commands(app, exit_code);
+  rbx1::cli::add_jobs_commands(app, exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp&) {

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <cstdlib>
 #include <cstring>
 #include <map>
 #include <mutex>
@@ -267,6 +268,24 @@ struct Console::Impl {
     send_json(res, http_status_for(ex->final_line), body);
   }
 
+  void history(const httplib::Request& req, httplib::Response& res) {
+    json r{{"cmd", "history"}};
+    for (const char* k : {"limit", "job"})
+      if (req.has_param(k)) r[k] = std::atoll(req.get_param_value(k).c_str());
+    for (const char* k : {"since", "format"})
+      if (req.has_param(k)) r[k] = req.get_param_value(k);
+    if (r.value("format", "") != "csv") return run_request(r.dump(), res);
+    daemon::Request request;
+    daemon::Error err;
+    if (!daemon::parse_request(r.dump(), request, err)) return send_json(res, 400, error_json(err.code, err.message));
+    auto q = daemon::submit(submit, request);
+    std::vector<json> events;
+    json final;
+    if (!q->wait_final(events, final, 10000)) return send_json(res, 504, error_json("timeout", "no history within 10 s"));
+    if (!final.contains("result")) return send_json(res, http_status_for(final), final);
+    res.set_content(final["result"].value("csv", ""), "text/csv");
+  }
+
   void routes() {
     http.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
       std::string what = "internal error";
@@ -311,6 +330,10 @@ struct Console::Impl {
 
     http.Get("/api/info", [this](const httplib::Request& req, httplib::Response& res) {
       if (allowed(req, res, Kind::Read)) send_json(res, 200, info);
+    });
+    // The jobs' history (rbx1 history): JSON, or the picks as CSV with ?format=csv.
+    http.Get("/api/history", [this](const httplib::Request& req, httplib::Response& res) {
+      if (allowed(req, res, Kind::Read)) history(req, res);
     });
     http.Get("/api/scan", [this](const httplib::Request& req, httplib::Response& res) {
       if (!allowed(req, res, Kind::Read)) return;

@@ -27,6 +27,7 @@ bool load_config(const std::string& file, const Overrides& overrides, Config& ou
   parse_daemon_config(top.section("daemon"), out.daemon);
   console::parse_console_config(top.section("console"), out.console);
   parse_operator_config(top.section("operator"), out.op);
+  rbx1::history::parse_history_config(top.section("history"), out.history);
   top.reject_unknown();  // a misspelt table name must not pass silently
 
   if (!overrides.port.empty()) out.link.port = overrides.port;

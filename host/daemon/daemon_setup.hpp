@@ -8,6 +8,7 @@
 #include "daemon_config.hpp"
 #include "frame_source.hpp"
 #include "gpio.hpp"
+#include "history.hpp"
 #include "link.hpp"
 #include "operator_config.hpp"
 #include "vision.hpp"
@@ -23,6 +24,7 @@ struct Config {
   DaemonConfig daemon;
   console::ConsoleConfig console;
   OperatorConfig op;  // [operator]
+  rbx1::history::HistoryConfig history;  // [history]
 };
 
 // Command-line and environment overrides, applied after the file (documented in README.md).

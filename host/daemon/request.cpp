@@ -15,6 +15,8 @@ constexpr CommandName kCommands[] = {
     {Command::Jog, "jog"},       {Command::PoseSave, "pose_save"}, {Command::PlaceSave, "place_save"},
     {Command::Background, "background"}, {Command::Teach, "teach"},
     {Command::CalibrateWorkspace, "calibrate_workspace"},
+    {Command::Sort, "sort"}, {Command::Clear, "clear"}, {Command::RecipeSave, "recipe_save"},
+    {Command::History, "history"}, {Command::Pause, "pause"}, {Command::Resume, "resume"}, {Command::Cancel, "cancel"},
 };
 
 // A label or place: printable, short, no control characters (it ends up in events and logs).
@@ -69,6 +71,7 @@ bool parse_request(std::string_view line, Request& out, Error& error) {
     return false;
   }
   if (is_operator_command(out.command)) return parse_operator_fields(j, name, out, error);
+  if (is_jobs_command(out.command)) return parse_jobs_fields(j, name, out, error);
   // Only pick takes arguments; anything else present is a mistake worth reporting.
   for (const auto& [key, value] : j.items()) {
     if (key == "cmd") continue;
@@ -100,6 +103,7 @@ nlohmann::json request_json(const Request& r) {
     j["place"] = r.place;
   }
   if (is_operator_command(r.command)) operator_fields_json(r, j);
+  if (is_jobs_command(r.command)) jobs_fields_json(r, j);
   return j;
 }
 

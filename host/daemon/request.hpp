@@ -17,6 +17,8 @@ enum class Command {
   Status, Scan, Pick, Home, Estop, ClearFault, Shutdown,
   // The operator's commands (operator_request.cpp parses their fields; host/daemon/README.md "Operator commands").
   Jog, PoseSave, PlaceSave, Background, Teach, CalibrateWorkspace,
+  // The cell's jobs and their control (jobs_request.cpp parses their fields).
+  Sort, Clear, RecipeSave, History, Pause, Resume, Cancel,
 };
 
 struct Request {
@@ -33,6 +35,14 @@ struct Request {
   int frames = 0;      // background: frames to average (0 = [operator] background_frames)
   bool mirror_ok = false;  // teach
   std::string action;  // calibrate_workspace: start, status, record, fit, save, cancel
+  // sort: recipe_name (a saved one) or recipe (class -> place); recipe_save: name and recipe; clear: place.
+  std::string recipe_name;
+  nlohmann::json recipe;
+  int max_picks = 0;   // sort, clear: 0 = no limit
+  int limit = 0;       // history: rows of each kind (0 = the default)
+  int64_t job = 0;     // history: one job's rows (0 = all)
+  std::string since;   // history: rows from this ISO-8601 time (a prefix: "2026-12-02")
+  std::string format;  // history: "json" (default) or "csv"
 };
 
 // An error reply: {"error": {"code": code, "message": message}}. Codes are stable strings clients test.
@@ -52,6 +62,10 @@ nlohmann::json request_json(const Request& r);
 bool is_operator_command(Command c);
 bool parse_operator_fields(const nlohmann::json& j, const std::string& cmd, Request& out, Error& error);
 void operator_fields_json(const Request& r, nlohmann::json& j);
+// The cell jobs' fields (jobs_request.cpp).
+bool is_jobs_command(Command c);
+bool parse_jobs_fields(const nlohmann::json& j, const std::string& cmd, Request& out, Error& error);
+void jobs_fields_json(const Request& r, nlohmann::json& j);
 
 // Reply lines.
 nlohmann::json error_reply(const Error& e);
