@@ -45,6 +45,7 @@ bench: host firmware
 	@tools/bench/console-live
 	@tools/bench/world
 	@tools/bench/history
+	@tools/bench/jobs
 
 fuzz: deps
 	@protocol/fuzz/run $(FUZZ_SECONDS)

@@ -7,7 +7,9 @@
 #include <condition_variable>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <map>
+#include <sstream>
 #include <mutex>
 #include <thread>
 
@@ -66,10 +68,20 @@ int http_status_for(const json& final_line) {
 
 // The commands the request layer knows, of those the page has controls for: the page shows the operator's
 // panels only when the daemon takes their requests.
+constexpr const char* kChartJs = "/usr/share/javascript/chart.js/chart.min.js";
+
+std::string read_file(const char* path) {
+  std::ifstream f(path, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
 json known_commands() {
   json out = json::array();
   for (const char* name : {"status", "scan", "pick", "home", "estop", "clear_fault", "jog", "pose_save", "place_save",
-                           "background", "teach", "calibrate_workspace"}) {
+                           "background", "teach", "calibrate_workspace", "sort", "clear", "recipe_save", "history",
+                           "pause", "resume", "cancel"}) {
     daemon::Request r;
     daemon::Error e;
     if (daemon::parse_request(json{{"cmd", name}}.dump(), r, e) || e.code != "unknown_command") out.push_back(name);
@@ -330,6 +342,13 @@ struct Console::Impl {
 
     http.Get("/api/info", [this](const httplib::Request& req, httplib::Response& res) {
       if (allowed(req, res, Kind::Read)) send_json(res, 200, info);
+    });
+    // Chart.js for the history page: Debian's libjs-chart.js from the disk, never fetched from a network.
+    http.Get("/chart.js", [](const httplib::Request&, httplib::Response& res) {
+      static const std::string js = read_file(kChartJs);
+      if (js.empty()) return send_json(res, 404, error_json("not_found", std::string(kChartJs) + ": missing (apt install libjs-chart.js)"));
+      res.set_header("Cache-Control", "max-age=86400");
+      res.set_content(js, "text/javascript; charset=utf-8");
     });
     // The jobs' history (rbx1 history): JSON, or the picks as CSV with ?format=csv.
     http.Get("/api/history", [this](const httplib::Request& req, httplib::Response& res) {

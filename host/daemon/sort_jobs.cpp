@@ -131,6 +131,7 @@ class SortRun {
       p.row.outcome = "picked";
       ++picked_[p.object.cls][p.place];
       ++picked_total_;
+      left_ = std::max(0, left_ - 1);  // until the next choice counts again
       reply_.event("pick_verified", {{"name", p.object.cls}, {"attempt", p.row.attempt}, {"place", p.place},
                                      {"centroid_cm", p.object.centroid_cm}, {"cycle_ms", p.row.cycle_ms}});
     }

@@ -130,5 +130,17 @@ def test_history_survives_a_kill_mid_job(tmp_path):
         assert cell.daemon.request({"cmd": "status"})[1]["result"]["job"] is None
         assert cell.daemon.request({"cmd": "pause"})[1]["error"]["code"] == "no_job"
         assert "marked interrupted" in cell.daemon.log_path.read_text()
+
+        # A corrupt database stops the daemon with one line naming it; the file is left as it was.
+        cell.daemon.stop()
+        junk = bytes(range(256)) * 20
+        db.write_bytes(junk)
+        for f in (tmp_path / "state").glob("history.sqlite-*"):
+            f.unlink()
+        r = subprocess.run([str(e2e.BIN / "rbx1d"), "--config", str(cell.daemon.config), "--port", cell.world.port],
+                           capture_output=True, text=True, timeout=60)
+        assert r.returncode == 1, r
+        assert f"{db}: the history database is unreadable" in r.stderr and "move the file aside" in r.stderr, r.stderr
+        assert db.read_bytes() == junk
     finally:
         cell.stop()
