@@ -124,6 +124,7 @@ struct Console::Impl {
   std::atomic<uint64_t> next_request{1};
   int port = 0;
   json info;
+  std::string scans_dir;  // the history's scan images ("" = none)
   std::mutex pages_mutex;
   struct PageStreams {
     int open = 0;
@@ -350,6 +351,13 @@ struct Console::Impl {
       res.set_header("Cache-Control", "max-age=86400");
       res.set_content(js, "text/javascript; charset=utf-8");
     });
+    // A pick's scan as the history kept it (404 no_image once the image budget removed it).
+    http.Get(R"(/api/history/scan/(\d{1,18})\.jpg)", [this](const httplib::Request& req, httplib::Response& res) {
+      if (!allowed(req, res, Kind::Read)) return;
+      std::string jpeg = scans_dir.empty() ? "" : read_file((scans_dir + "/" + std::string(req.matches[1]) + ".jpg").c_str());
+      if (jpeg.empty()) return send_json(res, 404, error_json("no_image", "no image kept for this scan ([history] max_mb)"));
+      res.set_content(jpeg, "image/jpeg");
+    });
     // The jobs' history (rbx1 history): JSON, or the picks as CSV with ?format=csv.
     http.Get("/api/history", [this](const httplib::Request& req, httplib::Response& res) {
       if (allowed(req, res, Kind::Read)) history(req, res);
@@ -447,6 +455,8 @@ Console::Console(ConsoleConfig config, Submit submit, camera::FrameSource* camer
 }
 
 Console::~Console() { stop(); }
+
+void Console::serve_scans(std::string dir) { impl_->scans_dir = std::move(dir); }
 
 int Console::start(std::string& error) {
   Impl& m = *impl_;

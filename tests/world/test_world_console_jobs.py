@@ -89,6 +89,12 @@ def test_a_sort_from_the_page_with_pause_and_resume_then_the_history_page(cell, 
     for cid in ("chart-classes", "chart-cycle"):
         drawn = wait(browser, lambda b: canvas_drawn(b, cid)[0] > 500 and canvas_drawn(b, cid), 20, cid + " is blank")
         assert drawn[1] > 200 and drawn[2] > 100, (cid, drawn)
+    # A pick's scan on click: the JPEG the history kept.
+    browser.find_element(By.CSS_SELECTOR, "#picks tbody tr").click()
+    size = wait(browser, lambda b: b.execute_script(
+        "const i = document.getElementById('scan-image'); return i.complete && i.naturalWidth ? [i.naturalWidth, i.naturalHeight] : null"),
+        20, "the pick's scan never loaded")
+    assert size == [800, 600], size
     browser.save_screenshot(str(SHOTS / "3-history.png"))
 
     # A phone at the arm: one column, the E-STOP on screen and clear of the token field.

@@ -24,12 +24,26 @@ function fill(id, rows, columns) {
   }));
 }
 
+function withToken(url) { return token ? url + '?token=' + encodeURIComponent(token) : url; }
+function showScan(p) {
+  const fig = $('scan-figure');
+  if (!p.scan || !p.image) {
+    fig.hidden = true;
+    return say('pick ' + p.id + ': no scan image kept (the [history] max_mb budget removes the oldest)', 'error');
+  }
+  $('scan-image').src = withToken('/api/history/scan/' + p.scan + '.jpg');
+  $('scan-caption').textContent = `pick ${p.id} (job ${p.job}): ${p.class} -> ${p.place || '–'}, ${p.outcome}` +
+                                  (p.reason ? ' (' + p.reason + ')' : '') + `, scan ${p.scan}`;
+  fig.hidden = false;
+}
+
 function showTables(h) {
   fill('jobs', h.jobs, [(j) => j.id, (j) => j.kind, (j) => JSON.stringify(j.recipe), (j) => j.started,
     (j) => j.ended, (j) => j.outcome, (j) => j.summary && j.summary.picked_total, (j) => j.summary && j.summary.picks_per_min]);
   fill('picks', h.picks, [(p) => p.id, (p) => p.job, (p) => p.ts.slice(11, 19), (p) => p.class,
     (p) => p.match_score === null ? null : p.match_score.toFixed(2), (p) => p.place, (p) => p.outcome,
     (p) => p.reason, (p) => (p.cycle_ms / 1000).toFixed(1), (p) => p.attempt]);
+  document.querySelectorAll('#picks tbody tr').forEach((tr, i) => tr.addEventListener('click', () => showScan(h.picks[i])));
 }
 
 function chart(id, config) {
