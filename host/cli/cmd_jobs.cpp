@@ -17,7 +17,7 @@ struct JobsOptions {
   bool json = false, csv = false;
   std::string recipe, place, name, file, since;
   int max_picks = 0, limit = 0;
-  int64_t job = 0;
+  int job = 0;
 };
 
 CLI::App* add(CLI::App& parent, std::shared_ptr<JobsOptions> o, const char* name, const char* help) {
@@ -77,7 +77,7 @@ void add_jobs_commands(CLI::App& app, int& exit_code) {
         return;
       }
     } else {
-      r.recipe_name = o->recipe;
+      r.recipe = o->recipe;
     }
     exit_code = run_daemon_request(o->socket, o->json, r);
   });

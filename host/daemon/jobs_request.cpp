@@ -53,7 +53,12 @@ bool int_field(const nlohmann::json& j, const char* key, int64_t lo, int64_t hi,
 // A recipe: a saved recipe's name, or an object of class -> place (checked in full when the job runs).
 bool recipe_field(const nlohmann::json& j, Request& out, Error& error, bool name_allowed) {
   const auto& f = j["recipe"];
-  if (name_allowed && f.is_string()) return string_field(j, "recipe", 64, out.recipe_name, error);
+  if (name_allowed && f.is_string()) {
+    std::string name;
+    if (!string_field(j, "recipe", 64, name, error)) return false;
+    out.recipe = name;
+    return true;
+  }
   if (!f.is_object() || f.empty())
     return bad(error, "bad_field", std::string("\"recipe\" must be ") + (name_allowed ? "a saved recipe's name or " : "") +
                                        "an object of class to place, e.g. {\"bolt\": \"tray\", \"*\": \"bin\"}");
@@ -105,8 +110,8 @@ bool parse_jobs_fields(const nlohmann::json& j, const std::string& cmd, Request&
         out.limit = int(v);
       }
       if (j.contains("job")) {
-        if (!int_field(j, "job", 1, INT64_MAX, v, error)) return false;
-        out.job = v;
+        if (!int_field(j, "job", 1, INT32_MAX, v, error)) return false;
+        out.job = int(v);
       }
       if (j.contains("since") && !string_field(j, "since", 40, out.since, error)) return false;
       if (j.contains("format")) {
@@ -122,7 +127,7 @@ bool parse_jobs_fields(const nlohmann::json& j, const std::string& cmd, Request&
 void jobs_fields_json(const Request& r, nlohmann::json& j) {
   switch (r.command) {
     case Command::Sort:
-      j["recipe"] = r.recipe_name.empty() ? r.recipe : nlohmann::json(r.recipe_name);
+      j["recipe"] = r.recipe;
       break;
     case Command::Clear: j["place"] = r.place; break;
     case Command::RecipeSave:

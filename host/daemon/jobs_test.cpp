@@ -125,7 +125,7 @@ TEST(JobsRequest, FieldsOfSortClearRecipeSaveAndHistory) {
   Error e;
   ASSERT_TRUE(parse_request(R"({"cmd":"sort","recipe":"bins","max_picks":5})", r, e)) << e.message;
   EXPECT_EQ(r.command, Command::Sort);
-  EXPECT_EQ(r.recipe_name, "bins");
+  EXPECT_EQ(r.recipe, "bins");
   EXPECT_EQ(r.max_picks, 5);
   EXPECT_EQ(request_json(r), json::parse(R"({"cmd":"sort","recipe":"bins","max_picks":5})"));
   ASSERT_TRUE(parse_request(R"({"cmd":"sort","recipe":{"bolt":"tray","*":"bin"}})", r, e)) << e.message;

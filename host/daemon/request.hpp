@@ -35,12 +35,11 @@ struct Request {
   int frames = 0;      // background: frames to average (0 = [operator] background_frames)
   bool mirror_ok = false;  // teach
   std::string action;  // calibrate_workspace: start, status, record, fit, save, cancel
-  // sort: recipe_name (a saved one) or recipe (class -> place); recipe_save: name and recipe; clear: place.
-  std::string recipe_name;
+  // sort: a saved recipe's name (a string) or the recipe itself (class -> place); recipe_save: name and recipe.
   nlohmann::json recipe;
   int max_picks = 0;   // sort, clear: 0 = no limit
   int limit = 0;       // history: rows of each kind (0 = the default)
-  int64_t job = 0;     // history: one job's rows (0 = all)
+  int job = 0;         // history: one job's rows (0 = all)
   std::string since;   // history: rows from this ISO-8601 time (a prefix: "2026-12-02")
   std::string format;  // history: "json" (default) or "csv"
 };

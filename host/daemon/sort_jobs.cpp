@@ -326,9 +326,9 @@ void Machine::job_sort(Reply& reply, const Request& request) {
   if (request.command == Command::Clear) {
     recipe = {{kAnyClass, request.place}, {kUnknownClass, request.place}};
     label = {{"place", request.place}};
-  } else if (!request.recipe_name.empty()) {
-    label = request.recipe_name;
-    if (!RecipeBook(config_.daemon.state_dir).find(request.recipe_name, recipe, error))
+  } else if (request.recipe.is_string()) {
+    label = request.recipe;
+    if (!RecipeBook(config_.daemon.state_dir).find(request.recipe.get<std::string>(), recipe, error))
       return reply.error("unknown_recipe", error);
   } else {
     label = request.recipe;
