@@ -42,6 +42,7 @@ bench: host firmware
 	@tools/bench/perception-accuracy
 	@tools/bench/perception-corpus
 	@tools/bench/daemon-latency
+	@tools/bench/bus
 	@tools/bench/console-live
 	@tools/bench/world
 	@tools/bench/history

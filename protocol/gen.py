@@ -20,25 +20,28 @@ MAX_PAYLOAD = 58
 
 
 class Field:
-    def __init__(self, spec, sizes):
+    def __init__(self, spec, sizes, joints):
         self.name = spec[0]
         self.type = spec[1]
-        self.count = spec[2] if len(spec) > 2 else 1
         self.is_array = len(spec) > 2
+        # An array's count is a number or "joints" (the joint count, named once in messages.json).
+        self.per_joint = self.is_array and spec[2] == "joints"
+        self.count = joints if self.per_joint else (spec[2] if self.is_array else 1)
+        self.c_count = "RBX1_JOINTS" if self.per_joint else str(self.count)
         self.size = sizes[self.type]
 
 
 class Message:
-    def __init__(self, spec, sizes):
+    def __init__(self, spec, sizes, joints):
         self.id = spec["id"]
         self.name = spec["name"]
         self.lower = self.name.lower()
         self.firmware_only = spec.get("firmware_only", False)
         if self.firmware_only:
-            self.payload = [Field(f, sizes) for f in spec["payload"]]
+            self.payload = [Field(f, sizes, joints) for f in spec["payload"]]
         else:
-            self.request = [Field(f, sizes) for f in spec["request"]]
-            self.response = [Field(f, sizes) for f in spec["response"]]
+            self.request = [Field(f, sizes, joints) for f in spec["request"]]
+            self.response = [Field(f, sizes, joints) for f in spec["response"]]
             if not self.response or self.response[0].name != "status" or self.response[0].type != "u8":
                 raise SystemExit(f"gen.py: {self.name}: a response must start with status u8")
 
@@ -51,7 +54,9 @@ def load():
     with open(SPEC) as f:
         spec = json.load(f)
     sizes = spec["field_types"]
-    msgs = [Message(m, sizes) for m in spec["messages"]]
+    if not 1 <= spec["joints"] <= 8:
+        raise SystemExit("gen.py: joints must be 1..8 (a joint mask is one byte)")
+    msgs = [Message(m, sizes, spec["joints"]) for m in spec["messages"]]
     for m in msgs:
         for fields in ([m.payload] if m.firmware_only else [m.request, m.response]):
             if payload_len(fields) > MAX_PAYLOAD:
@@ -65,7 +70,7 @@ def load():
 def c_struct(name, fields):
     lines = ["typedef struct {"]
     for f in fields:
-        arr = f"[{f.count}]" if f.is_array else ""
+        arr = f"[{f.c_count}]" if f.is_array else ""
         lines.append(f"  {C_TYPES[f.type]} {f.name}{arr};")
     lines.append(f"}} {name};")
     return "\n".join(lines)
@@ -78,7 +83,7 @@ def c_pack_body(fields):
     for f in fields:
         put = {"u8": "put_u8", "u16": "put_u16", "i32": "put_i32"}[f.type]
         if f.is_array:
-            out.append(f"  for (i = 0; i < {f.count}; i++) {put}(payload + {off} + {f.size} * i, m->{f.name}[i]);")
+            out.append(f"  for (i = 0; i < {f.c_count}; i++) {put}(payload + {off} + {f.size} * i, m->{f.name}[i]);")
         else:
             out.append(f"  {put}(payload + {off}, m->{f.name});")
         off += f.size * f.count
@@ -91,7 +96,7 @@ def c_unpack_body(fields):
     for f in fields:
         get = {"u8": "get_u8", "u16": "get_u16", "i32": "get_i32"}[f.type]
         if f.is_array:
-            out.append(f"  for (i = 0; i < {f.count}; i++) m->{f.name}[i] = {get}(payload + {off} + {f.size} * i);")
+            out.append(f"  for (i = 0; i < {f.c_count}; i++) m->{f.name}[i] = {get}(payload + {off} + {f.size} * i);")
         else:
             out.append(f"  m->{f.name} = {get}(payload + {off});")
         off += f.size * f.count
@@ -128,6 +133,10 @@ def gen_h(spec, msgs):
     L.append("#endif")
     L.append("")
     L.append(f"#define RBX1_MESSAGES_VERSION {spec['version']}")
+    L.append("")
+    L.append("/* The joint count (the length of every per-joint array) and the mask of all joints (HOME, STATUS.homed). */")
+    L.append(f"#define RBX1_JOINTS {spec['joints']}")
+    L.append("#define RBX1_ALL_JOINTS_MASK ((uint8_t)((1u << RBX1_JOINTS) - 1u))")
     L.append("")
     L.append("/* Message types (a response is the request type | 0x80). */")
     L.append("enum rbx1_msg_type {")
@@ -168,7 +177,7 @@ def gen_h(spec, msgs):
     L.append("")
     L.append("typedef struct {")
     L.append("  uint8_t key;")
-    L.append("  uint8_t is_global; /* 1: joint must be RBX1_GLOBAL_JOINT; 0: joint 0..5 */")
+    L.append("  uint8_t is_global; /* 1: joint must be RBX1_GLOBAL_JOINT; 0: joint 0..RBX1_JOINTS-1 */")
     L.append("  int32_t min;")
     L.append("  int32_t max;")
     L.append("  int32_t default_value;")
@@ -336,6 +345,8 @@ def gen_py(spec, msgs):
     L.append("")
     L.append(f"PROTO_VERSION = {spec['version']}")
     L.append(f"GLOBAL_JOINT = 0x{spec['global_joint']:02X}")
+    L.append(f"JOINTS = {spec['joints']}  # the joint count: the length of every per-joint array")
+    L.append("ALL_JOINTS_MASK = (1 << JOINTS) - 1  # every joint's bit (HOME, STATUS.homed)")
     L.append("")
     L.append("")
     L.append("class MsgType(enum.IntEnum):")

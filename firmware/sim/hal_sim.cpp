@@ -100,7 +100,7 @@ void hal_step_timer_stop(void) { board().step_due = 0; }
 
 void hal_step_high(uint8_t mask) {
   auto& b = board();
-  for (int i = 0; i < 6; i++) {
+  for (int i = 0; i < RBX1_JOINTS; i++) {
     if (!(mask & (1u << i))) continue;
     b.pulses[i]++;
     bool high = (b.dir_level >> i) & 1u;
@@ -113,7 +113,7 @@ void hal_step_high(uint8_t mask) {
 void hal_step_low(void) { board().step_level = 0; }
 
 void hal_dir_write(uint8_t positive_mask) {
-  board().dir_level = RBX1_DIR_POSITIVE_LEVEL ? positive_mask : (uint8_t)(~positive_mask & 0x3F);
+  board().dir_level = RBX1_DIR_POSITIVE_LEVEL ? positive_mask : (uint8_t)(~positive_mask & RBX1_ALL_JOINTS_MASK);
 }
 
 void hal_drivers_enable(uint8_t on) { board().drivers_on = on; }
@@ -123,7 +123,7 @@ void hal_servo_write(uint16_t pulse_us) { board().servo_us = pulse_us; }
 uint8_t hal_limit_inputs(void) {
   auto& b = board();
   uint8_t m = b.limits;
-  for (int i = 0; i < 6; i++) {
+  for (int i = 0; i < RBX1_JOINTS; i++) {
     const auto& s = b.switches[i];
     if (s.present && (s.below ? b.net[i] <= s.at : b.net[i] >= s.at)) m |= (uint8_t)(1u << i);
   }
@@ -149,8 +149,8 @@ hal_irq_state hal_irq_save(void) { return 0; }  // interrupts run between main-l
 
 void hal_irq_restore(hal_irq_state) {}
 
-void hal_entry_done(uint8_t kind, uint16_t n, const int32_t target[6], const int32_t start[6], const int32_t end[6],
-                    uint16_t duration_ms, uint16_t pulse_us) {
+void hal_entry_done(uint8_t kind, uint16_t n, const int32_t target[RBX1_JOINTS], const int32_t start[RBX1_JOINTS],
+                    const int32_t end[RBX1_JOINTS], uint16_t duration_ms, uint16_t pulse_us) {
   if (board().on_entry_done) board().on_entry_done(kind, n, target, start, end, duration_ms, pulse_us);
 }
 

@@ -8,6 +8,8 @@
 #include <functional>
 #include <vector>
 
+#include "rbx1_messages.h"
+
 namespace rbx1::sim {
 
 constexpr uint64_t kTicksPerSecond = 2000000;  // the step timer's clock (F_CPU / 8 on the AVR)
@@ -31,13 +33,13 @@ struct Board {
   uint8_t step_level = 0;
   uint8_t drivers_on = 0;
   uint16_t servo_us = 0;
-  std::array<int64_t, 6> net{};     // signed pulse count per joint (DIR high = +1)
-  std::array<uint64_t, 6> pulses{};  // total pulses per joint
+  std::array<int64_t, RBX1_JOINTS> net{};      // signed pulse count per joint (DIR high = +1)
+  std::array<uint64_t, RBX1_JOINTS> pulses{};  // total pulses per joint
   uint64_t step_isr_calls = 0;
   // Inputs.
   uint8_t limits = 0;  // forced switch states (control FIFO `limit J 1`)
   bool estop = false;
-  std::array<SwitchModel, 6> switches{};
+  std::array<SwitchModel, RBX1_JOINTS> switches{};
   // Non-volatile memory and reset cause.
   std::array<uint8_t, 4096> eeprom{};
   bool eeprom_dirty = false;

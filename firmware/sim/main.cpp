@@ -53,7 +53,7 @@ bool save_eeprom(const std::string& path) {
 
 std::string json_array(const int32_t* v) {
   std::string s = "[";
-  for (int i = 0; i < 6; i++) s += (i ? "," : "") + std::to_string(v[i]);
+  for (int i = 0; i < RBX1_JOINTS; i++) s += (i ? "," : "") + std::to_string(v[i]);
   return s + "]";
 }
 
@@ -97,8 +97,8 @@ bool control_command(const std::string& line, std::string& error) {
   } else if (cmd == "limit") {
     int j = 0, v = -1;
     in >> j >> v;
-    if (j < 1 || j > 6 || (v != 0 && v != 1)) {
-      error = "usage: limit J 0|1 (J = 1..6)";
+    if (j < 1 || j > RBX1_JOINTS || (v != 0 && v != 1)) {
+      error = "usage: limit J 0|1 (J = 1.." + std::to_string(RBX1_JOINTS) + ")";
     } else if (v) {
       b.limits = (uint8_t)(b.limits | (1u << (j - 1)));
     } else {

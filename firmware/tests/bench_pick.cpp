@@ -55,7 +55,7 @@ struct Host {
   }
   uint8_t move(const arm::Steps& t, uint16_t ms) {
     rbx1_move_req q{};
-    for (int j = 0; j < 6; j++) q.target[j] = t[j];
+    for (int j = 0; j < RBX1_JOINTS; j++) q.target[j] = t[j];
     q.duration_ms = ms;
     uint8_t p[RBX1_MOVE_REQ_LEN];
     return request(RBX1_MSG_MOVE, p, rbx1_move_req_pack(&q, p));
@@ -85,7 +85,7 @@ double run(const std::vector<Entry>& entries, const arm::Steps& start, std::stri
   uint8_t on = 1, p[RBX1_SET_POSITION_REQ_LEN];
   if (h.request(RBX1_MSG_ENABLE, &on, 1) != RBX1_OK) return -1;
   rbx1_set_position_req sp{};
-  for (int j = 0; j < 6; j++) sp.position[j] = start[j];
+  for (int j = 0; j < RBX1_JOINTS; j++) sp.position[j] = start[j];
   if (h.request(RBX1_MSG_SET_POSITION, p, rbx1_set_position_req_pack(&sp, p)) != RBX1_OK) return -1;
   const uint64_t t0 = sim::board().now;
   for (size_t k = 0; k < entries.size();) {

@@ -18,11 +18,11 @@ constexpr double kHz = 2e6;  // simulated ticks per second
 
 // Every pulse with its time and signed direction, every completed entry's time.
 struct Trace {
-  std::array<std::vector<std::pair<uint64_t, int>>, 6> steps;
+  std::array<std::vector<std::pair<uint64_t, int>>, RBX1_JOINTS> steps;
   std::vector<uint64_t> done;
   void attach() {
     sim::board().on_step = [this](uint8_t mask, uint64_t now) {
-      for (int i = 0; i < 6; i++)
+      for (int i = 0; i < RBX1_JOINTS; i++)
         if (mask & (1u << i)) steps[i].push_back({now, (sim::board().dir_level >> i) & 1 ? 1 : -1});
     };
     sim::board().on_entry_done = [this](uint8_t, uint16_t, const int32_t*, const int32_t*, const int32_t*, uint16_t,
@@ -48,7 +48,7 @@ struct Trace {
 };
 
 struct Measured {
-  double max_speed[6] = {}, max_accel[6] = {};
+  double max_speed[RBX1_JOINTS] = {}, max_accel[RBX1_JOINTS] = {};
 };
 
 // Joint speeds and accelerations from the positions at 1 ms steps: speed over windows of kSpeedW, acceleration as
@@ -58,7 +58,7 @@ constexpr double kSpeedW = 0.02, kAccelW = 0.1;
 inline Measured measure(const Trace& tr, uint64_t t0, uint64_t t1) {
   Measured m;
   const uint64_t ws = (uint64_t)(kSpeedW * kHz), wa = (uint64_t)(kAccelW * kHz), dt = (uint64_t)(kHz / 1000);
-  for (int j = 0; j < 6; j++) {
+  for (int j = 0; j < RBX1_JOINTS; j++) {
     if (tr.steps[j].empty()) continue;
     std::vector<int64_t> p;  // position at t0 + k ms
     int64_t pos = 0;
@@ -77,8 +77,8 @@ inline Measured measure(const Trace& tr, uint64_t t0, uint64_t t1) {
   return m;
 }
 
-inline void expect_within_limits(const Measured& m, const double vmax[6], const double acc[6]) {
-  for (int j = 0; j < 6; j++) {
+inline void expect_within_limits(const Measured& m, const double vmax[RBX1_JOINTS], const double acc[RBX1_JOINTS]) {
+  for (int j = 0; j < RBX1_JOINTS; j++) {
     EXPECT_LE(m.max_speed[j], vmax[j] + 1 / kSpeedW) << "J" << j + 1;
     EXPECT_LE(m.max_accel[j], acc[j] * 1.02 + 4 / (kAccelW * kAccelW)) << "J" << j + 1;
   }

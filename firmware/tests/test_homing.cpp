@@ -7,7 +7,7 @@ namespace {
 TEST_F(Fw, HomingFindsEverySwitchAndDeclaresHomePosition) {
   ASSERT_EQ(enable(1), RBX1_OK);
   // Switches 300..800 steps below the start (HOME_DIR 0), one joint homing towards max.
-  for (int j = 0; j < 6; j++) sim::board().switches[j] = {true, -300 - 100 * j, true};
+  for (int j = 0; j < RBX1_JOINTS; j++) sim::board().switches[j] = {true, -300 - 100 * j, true};
   sim::board().switches[4] = {true, 450, false};
   ASSERT_EQ(config_set(4, RBX1_KEY_HOME_DIR, 1), RBX1_OK);
   ASSERT_EQ(config_set(0, RBX1_KEY_HOME_POSITION, -1000), RBX1_OK);
@@ -18,12 +18,12 @@ TEST_F(Fw, HomingFindsEverySwitchAndDeclaresHomePosition) {
   run_until_idle(20000);
   rbx1_status_resp s = status();
   EXPECT_EQ(s.state, RBX1_STATE_IDLE);
-  EXPECT_EQ(s.homed, 0x3F);
+  EXPECT_EQ(s.homed, RBX1_ALL_JOINTS_MASK);
   EXPECT_EQ(s.faults & RBX1_FAULTS_LATCHING, 0);
   EXPECT_EQ(s.position[0], -1000);
-  for (int j = 1; j < 6; j++) EXPECT_EQ(s.position[j], 0) << "joint " << j + 1;
+  for (int j = 1; j < RBX1_JOINTS; j++) EXPECT_EQ(s.position[j], 0) << "joint " << j + 1;
   // Each joint rests on the first released step next to its switch.
-  for (int j = 0; j < 6; j++) {
+  for (int j = 0; j < RBX1_JOINTS; j++) {
     int64_t expect = j == 4 ? 449 : -300 - 100 * j + 1;
     EXPECT_EQ(sim::board().net[j], expect) << "joint " << j + 1;
   }
@@ -48,11 +48,11 @@ TEST_F(Fw, HomingPartOfTheJointsKeepsTheOthers) {
   ASSERT_EQ(config_set(1, RBX1_KEY_HOME_POSITION, -7), RBX1_OK);
   EXPECT_EQ(home(1u << 1), RBX1_OK);
   rbx1_status_resp s = status();
-  EXPECT_EQ(s.homed, 0x3F & ~(1u << 1)) << "the joint being homed is not homed until it is";
+  EXPECT_EQ(s.homed, RBX1_ALL_JOINTS_MASK & ~(1u << 1)) << "the joint being homed is not homed until it is";
   EXPECT_EQ(move({100, 200, 300, 400, 500, 600}), RBX1_BUSY);
   run_until_idle(20000);
   s = status();
-  EXPECT_EQ(s.homed, 0x3F);
+  EXPECT_EQ(s.homed, RBX1_ALL_JOINTS_MASK);
   EXPECT_EQ(s.position[1], -7);
   for (int j : {0, 2, 3, 4, 5}) EXPECT_EQ(s.position[j], 100 * (j + 1)) << "joint " << j + 1 << " kept its position";
   EXPECT_EQ(move({100, -7, 300, 400, 500, 600}), RBX1_OK);

@@ -159,7 +159,7 @@ TEST_F(LineTiming, PickLinesRunAsPlannedCloseToTheTimeOptimalBound) {
   for (double speed : {20.0, 90.0}) {
     ArmConfig c;
     c.speeds.joint_speed_deg_s = speed;
-    double vmax[6], acc[6];
+    double vmax[RBX1_JOINTS], acc[RBX1_JOINTS];
     for (int j = 0; j < kJoints; ++j) vmax[j] = c.joints[j].max_speed_steps_s, acc[j] = c.joints[j].accel_steps_s2;
     double took_sum = 0, bound_sum = 0;
     for (auto [u, v, grip, height] : {std::tuple{9.0, 6.0, -50.0, 30.0}, {1.0, 1.0, 80.0, 0.0},

@@ -10,7 +10,7 @@ namespace {
 
 std::vector<uint8_t> move_payload(std::vector<int32_t> target, uint16_t duration_ms = 0) {
   rbx1_move_req q{};
-  for (int i = 0; i < 6; i++) q.target[i] = target[i];
+  for (int i = 0; i < RBX1_JOINTS; i++) q.target[i] = target[i];
   q.duration_ms = duration_ms;
   std::vector<uint8_t> p(RBX1_MOVE_REQ_LEN);
   rbx1_move_req_pack(&q, p.data());

@@ -19,7 +19,7 @@
 namespace rbx1::fwtest {
 namespace {
 
-using Target = std::array<int32_t, 6>;
+using Target = std::array<int32_t, RBX1_JOINTS>;
 
 // n moves along 1.1 turns of a circle of radius r steps in J1/J2 from 0 (tools/avrsim/stream.py streams the same
 // shape, with longer moves, to the real ELF).
@@ -33,20 +33,21 @@ std::vector<Target> circle(int n, double r) {
 }
 
 // The junction rule, independently of planner.cpp: the largest dominant rate at the junction of moves a -> b, c.
-double junction_speed(const Target& a, const Target& b, const Target& c, const double vmax[6], const double acc[6]) {
-  double da[6], db[6], na = 0, nb = 0;
-  for (int i = 0; i < 6; i++) {
+double junction_speed(const Target& a, const Target& b, const Target& c, const double vmax[RBX1_JOINTS],
+                      const double acc[RBX1_JOINTS]) {
+  double da[RBX1_JOINTS], db[RBX1_JOINTS], na = 0, nb = 0;
+  for (int i = 0; i < RBX1_JOINTS; i++) {
     da[i] = b[i] - a[i];
     db[i] = c[i] - b[i];
     na = std::max(na, std::fabs(da[i]));
     nb = std::max(nb, std::fabs(db[i]));
   }
   double v = 1e30;
-  for (int i = 0; i < 6; i++) {
+  for (int i = 0; i < RBX1_JOINTS; i++) {
     if (da[i]) v = std::min(v, vmax[i] * na / std::fabs(da[i]));
     if (db[i]) v = std::min(v, vmax[i] * nb / std::fabs(db[i]));
   }
-  for (int i = 0; i < 6; i++) {
+  for (int i = 0; i < RBX1_JOINTS; i++) {
     double d = std::fabs(da[i] / na - db[i] / nb);
     if (d > 0) v = std::min({v, std::sqrt(2 * acc[i] * JUNCTION_LAG_STEPS) / d, std::sqrt(acc[i] * std::min(na, nb) / d)});
   }
@@ -72,7 +73,7 @@ class Lookahead : public Fw {
   void SetUp() override {
     Fw::SetUp();
     ready();
-    for (int j = 0; j < 6; j++) {
+    for (int j = 0; j < RBX1_JOINTS; j++) {
       vmax_[j] = j < 2 ? 2000 : 4000;
       acc_[j] = j < 2 ? 20000 : 8000;
       ASSERT_EQ(config_set((uint8_t)j, RBX1_KEY_MAX_SPEED, (int32_t)vmax_[j]), RBX1_OK);
@@ -80,7 +81,7 @@ class Lookahead : public Fw {
     }
     tr_.attach();
   }
-  double vmax_[6], acc_[6];
+  double vmax_[RBX1_JOINTS], acc_[RBX1_JOINTS];
   Trace tr_;
 };
 
@@ -90,7 +91,7 @@ TEST_F(Lookahead, CircleOfFiveHundredMovesRunsWithoutStopping) {
   stream(*this, c, 0);
   rbx1_status_resp s = status();
   ASSERT_EQ(s.moves_done, 500);
-  for (int j = 0; j < 6; j++) {
+  for (int j = 0; j < RBX1_JOINTS; j++) {
     EXPECT_EQ(s.position[j], c.back()[j]) << "J" << j + 1;
     EXPECT_EQ(sim::board().net[j], c.back()[j]) << "J" << j + 1 << ": pulses on the pins";
   }
@@ -201,7 +202,7 @@ TEST_F(Lookahead, CornerSlowsToTheRuleAndReversalStops) {
   EXPECT_LT(vj, 0.5 * vmax_[0]);  // the corner slows the move
   EXPECT_NEAR(slowest_near(tr_.steps[0][2999].first), vj, 0.1 * vj) << "corner: junction speed " << vj;
   EXPECT_LT(slowest_near(tr_.steps[0][5999].first), 1.02 * v0) << "reversal: at the stop rate";
-  for (int j = 0; j < 6; j++) EXPECT_EQ(status().position[j], path.back()[j]);
+  for (int j = 0; j < RBX1_JOINTS; j++) EXPECT_EQ(status().position[j], path.back()[j]);
   Measured m = measure(tr_, tr_.all().front(), tr_.all().back());
   expect_within_limits(m, vmax_, acc_);
 }
@@ -226,7 +227,7 @@ TEST_F(Lookahead, StopMidStreamDeceleratesWithinTheLimits) {
   EXPECT_EQ(s.state, RBX1_STATE_IDLE);
   EXPECT_EQ(s.moves_accepted, (uint16_t)(s.moves_done + s.moves_flushed));
   EXPECT_EQ(s.queue_free, 16);
-  for (int j = 0; j < 6; j++) EXPECT_EQ(s.position[j], sim::board().net[j]);
+  for (int j = 0; j < RBX1_JOINTS; j++) EXPECT_EQ(s.position[j], sim::board().net[j]);
   std::vector<uint64_t> all = tr_.all();
   ASSERT_GT(all.back(), t_stop) << "it decelerated, not stopped dead";
   EXPECT_LT((double)(all.back() - t_stop) / kHz, 2 * vmax_[0] / acc_[0] + 0.01);
@@ -247,7 +248,7 @@ struct Item {
 std::vector<Item> random_stream(std::mt19937& rng, int n) {
   std::uniform_real_distribution<double> u(0, 1), g(-1, 1);
   std::vector<Item> out;
-  std::array<double, 6> dir{1, 0.5, 0, 0, 0, 0}, pos{};
+  std::array<double, RBX1_JOINTS> dir{1, 0.5, 0, 0, 0, 0}, pos{};
   for (int k = 0; k < n; k++) {
     Item it;
     double r = u(rng);
@@ -272,7 +273,7 @@ std::vector<Item> random_stream(std::mt19937& rng, int n) {
     for (double d : dir) m = std::max(m, std::fabs(d));
     if (m == 0) dir[0] = m = 1;
     double len = u(rng) < 0.03 ? 0 : u(rng) < 0.08 ? 1 + 2 * u(rng) : 3 + 147 * u(rng);
-    for (int j = 0; j < 6; j++) {
+    for (int j = 0; j < RBX1_JOINTS; j++) {
       pos[j] = std::clamp(pos[j] + len * dir[j] / m, -90000.0, 90000.0);
       it.target[j] = (int32_t)std::lround(pos[j]);
     }

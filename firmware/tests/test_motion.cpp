@@ -10,12 +10,12 @@ namespace rbx1::fwtest {
 namespace {
 
 struct StepTrace {
-  std::array<std::vector<uint64_t>, 6> t;  // tick of every pulse per joint
+  std::array<std::vector<uint64_t>, RBX1_JOINTS> t;  // tick of every pulse per joint
   std::vector<uint64_t> isr;              // tick of every pulse-bearing ISR
   void attach() {
     sim::board().on_step = [this](uint8_t mask, uint64_t now) {
       isr.push_back(now);
-      for (int i = 0; i < 6; i++)
+      for (int i = 0; i < RBX1_JOINTS; i++)
         if (mask & (1u << i)) t[i].push_back(now);
     };
   }
@@ -44,7 +44,7 @@ void check_coordinated(Fw& fw, std::vector<int32_t> target, int dominant) {
   EXPECT_EQ(s.moves_done, 1);
   uint32_t n = (uint32_t)std::abs(target[dominant]);
   ASSERT_EQ(tr.t[dominant].size(), n);
-  for (int i = 0; i < 6; i++) {
+  for (int i = 0; i < RBX1_JOINTS; i++) {
     EXPECT_EQ(s.position[i], target[i]) << "joint " << i + 1;
     EXPECT_EQ(sim::board().net[i], target[i]) << "joint " << i + 1;  // pulses and DIR as the drivers see them
     EXPECT_EQ(sim::board().pulses[i], (uint64_t)std::abs(target[i])) << "no back and forth";
@@ -73,7 +73,7 @@ void check_coordinated(Fw& fw, std::vector<int32_t> target, int dominant) {
 
 TEST_F(Fw, ConsecutiveMovesAndGripperComplete) {
   ready();
-  std::vector<std::array<int32_t, 6>> done;
+  std::vector<std::array<int32_t, RBX1_JOINTS>> done;
   sim::board().on_entry_done = [&](uint8_t kind, uint16_t, const int32_t*, const int32_t*, const int32_t* end,
                                    uint16_t, uint16_t) {
     if (kind == 0) done.push_back({end[0], end[1], end[2], end[3], end[4], end[5]});
@@ -87,9 +87,9 @@ TEST_F(Fw, ConsecutiveMovesAndGripperComplete) {
   EXPECT_EQ(s.gripper_us, 1500);
   EXPECT_EQ(sim::board().servo_us, 1500);
   ASSERT_EQ(done.size(), 2u);
-  EXPECT_EQ(done[0], (std::array<int32_t, 6>{100, 200, 300, 400, 500, 600}));
-  EXPECT_EQ(done[1], (std::array<int32_t, 6>{-100, 0, 300, 0, 0, -600}));
-  for (int i = 0; i < 6; i++) EXPECT_EQ(sim::board().net[i], s.position[i]);
+  EXPECT_EQ(done[0], (std::array<int32_t, RBX1_JOINTS>{100, 200, 300, 400, 500, 600}));
+  EXPECT_EQ(done[1], (std::array<int32_t, RBX1_JOINTS>{-100, 0, 300, 0, 0, -600}));
+  for (int i = 0; i < RBX1_JOINTS; i++) EXPECT_EQ(sim::board().net[i], s.position[i]);
 }
 
 // Rates between pulses: 2 MHz ticks -> steps/s.

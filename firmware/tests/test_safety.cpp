@@ -23,7 +23,7 @@ TEST_F(Fw, PowerUpIsDisabledAndNotHomed) {
   EXPECT_EQ(sim::board().pulses[0], 0u);
   EXPECT_EQ(status().queue_free, 16);
   ASSERT_EQ(set_position({5, 0, 0, 0, 0, 0}), RBX1_OK);
-  EXPECT_EQ(status().homed, 0x3F);
+  EXPECT_EQ(status().homed, RBX1_ALL_JOINTS_MASK);
   EXPECT_EQ(move({10, 0, 0, 0, 0, 0}), RBX1_OK);
   run_until_idle();
   EXPECT_EQ(status().position[0], 10);
@@ -40,7 +40,7 @@ TEST_F(Fw, SoftLimitRejectsTheWholeMove) {
   run_ms(20);
   rbx1_status_resp s = status();
   EXPECT_EQ(s.queue_free, 16);
-  for (int i = 0; i < 6; i++) EXPECT_EQ(sim::board().pulses[i], 0u);
+  for (int i = 0; i < RBX1_JOINTS; i++) EXPECT_EQ(sim::board().pulses[i], 0u);
   EXPECT_EQ(move({1000, 0, 500, 0, 0, 0}), RBX1_OK);
   run_until_idle();
   EXPECT_EQ(status().position[2], 500);
@@ -53,11 +53,11 @@ TEST_F(Fw, SetPositionOutsideTheSoftLimitsIsRefused) {
   EXPECT_EQ(set_position({-100001, 0, 0, 0, 0, 0}), RBX1_SOFT_LIMIT);  // default limits +-100000
   rbx1_status_resp s = status();
   EXPECT_EQ(s.homed, 0) << "a refused declaration changes nothing";
-  for (int i = 0; i < 6; i++) EXPECT_EQ(s.position[i], 0);
+  for (int i = 0; i < RBX1_JOINTS; i++) EXPECT_EQ(s.position[i], 0);
   EXPECT_EQ(move({0, 0, 0, 0, 0, 0}), RBX1_NOT_HOMED);
   EXPECT_EQ(set_position({-100000, 0, 0, 500, 0, 0}), RBX1_OK);  // the limits themselves are inside
   s = status();
-  EXPECT_EQ(s.homed, 0x3F);
+  EXPECT_EQ(s.homed, RBX1_ALL_JOINTS_MASK);
   EXPECT_EQ(s.position[0], -100000);
   EXPECT_EQ(s.position[3], 500);
 }
@@ -141,7 +141,7 @@ TEST_F(Fw, LimitSwitchHitWhileMovingIsAFault) {
   rbx1_status_resp s = status();
   EXPECT_EQ(s.state, RBX1_STATE_FAULT);
   EXPECT_TRUE(s.faults & RBX1_FAULT_LIMIT_HIT);
-  EXPECT_EQ(s.inputs & 0x3F, RBX1_INPUT_LIMIT_J2);
+  EXPECT_EQ(s.inputs & RBX1_ALL_JOINTS_MASK, RBX1_INPUT_LIMIT_J2);
   EXPECT_EQ(s.position[4], sim::board().net[4]);
   EXPECT_EQ(simple(RBX1_MSG_CLEAR_FAULT), RBX1_OK);
   // A switch already pressed when a move starts is not a new hit (the arm may move off it).

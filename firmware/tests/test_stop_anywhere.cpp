@@ -12,7 +12,7 @@
 namespace rbx1::fwtest {
 namespace {
 
-using Target = std::array<int32_t, 6>;
+using Target = std::array<int32_t, RBX1_JOINTS>;
 
 // A three-joint path of short joined moves whose joint rates change smoothly (as a straight line of the tool
 // point does through the IK), then reverse.
@@ -39,7 +39,7 @@ TEST_P(StopAnywhere, ComesToRestWhereverTheStopFalls) {
   for (uint32_t stop_ms = 1; stop_ms <= 1200; stop_ms += 3) {
     SetUp();
     ready();
-    for (int j = 0; j < 6; j++) {
+    for (int j = 0; j < RBX1_JOINTS; j++) {
       ASSERT_EQ(config_set((uint8_t)j, RBX1_KEY_MAX_SPEED, vmax), RBX1_OK);
       ASSERT_EQ(config_set((uint8_t)j, RBX1_KEY_ACCEL, acc), RBX1_OK);
     }
@@ -70,7 +70,7 @@ TEST_P(StopAnywhere, ComesToRestWhereverTheStopFalls) {
     }
     bool ok = s.state == RBX1_STATE_IDLE && t <= rest_ms &&
               s.moves_accepted == (uint16_t)(s.moves_done + s.moves_flushed) && s.queue_free == 16;
-    for (int j = 0; j < 6; j++) ok = ok && s.position[j] == sim::board().net[j];
+    for (int j = 0; j < RBX1_JOINTS; j++) ok = ok && s.position[j] == sim::board().net[j];
     if (!ok && stuck++ == 0)
       first = "STOP at " + std::to_string(stop_ms) + " ms (" + std::to_string(k) + " moves sent): state " +
               std::to_string(s.state) + " after " + std::to_string(t) + " ms, faults " + std::to_string(s.faults) +

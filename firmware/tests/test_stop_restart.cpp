@@ -51,7 +51,7 @@ class Recovery {
     rbx1_status_resp s = status();
     EXPECT_EQ(s.state, RBX1_STATE_IDLE);
     EXPECT_EQ(s.moves_done, (uint16_t)(before + 1));
-    for (int j = 0; j < 6; j++) {
+    for (int j = 0; j < RBX1_JOINTS; j++) {
       EXPECT_EQ(done_.end[j], target[j]) << "joint " << j + 1;
       EXPECT_EQ(s.position[j], target[j]) << "joint " << j + 1;
       EXPECT_EQ(sim::board().net[j], target[j]) << "joint " << j + 1 << ": pulses on the pins";
@@ -66,7 +66,7 @@ class Recovery {
     EXPECT_EQ(sim::board().pulses[0], n);
     rbx1_status_resp s = status();
     EXPECT_EQ(s.queue_free, 16);
-    for (int j = 0; j < 6; j++) EXPECT_EQ(s.position[j], sim::board().net[j]);
+    for (int j = 0; j < RBX1_JOINTS; j++) EXPECT_EQ(s.position[j], sim::board().net[j]);
     EXPECT_EQ(simple(RBX1_MSG_CLEAR_FAULT), RBX1_OK);
     s = status();
     EXPECT_EQ(s.state, RBX1_STATE_IDLE);

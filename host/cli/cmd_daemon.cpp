@@ -1,5 +1,7 @@
 // cmd_daemon.cpp - rbx1 status|scan|pick|home|estop|clear-fault|shutdown: the rbx1d control socket client.
 #include <algorithm>
+#include <set>
+#include <vector>
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
@@ -7,6 +9,8 @@
 #include <memory>
 #include <string>
 
+#include "command_table.hpp"
+#include "error_codes.hpp"
 #include "commands.hpp"
 #include "control_client.hpp"
 
@@ -24,12 +28,8 @@ struct DaemonOptions {
 // How long a command waits for its final line by default: status, estop and shutdown are answered at once (a
 // daemon that does not answer them in 10 s is stuck, and the operator must know); jobs take as long as they take.
 double default_timeout_s(daemon::Command c) {
-  switch (c) {
-    case daemon::Command::Status:
-    case daemon::Command::Estop:
-    case daemon::Command::Shutdown: return 10;
-    default: return 0;
-  }
+  if (c == daemon::Command::Subscribe) return 0;  // streams until the client stops
+  return daemon::command_spec(c).mode == daemon::Mode::Immediate ? 10 : 0;
 }
 }  // namespace
 
@@ -41,13 +41,27 @@ std::string default_socket() {
 namespace {
 
 // Codes that mean the request itself was wrong (usage), as opposed to a job that failed.
-bool usage_error(const std::string& code) {
-  return code == "bad_json" || code == "bad_request" || code == "unknown_command" || code == "missing_field" ||
-         code == "bad_field" || code == "line_too_long";
-}
+bool usage_error(const std::string& code) { return daemon::is_request_error(code); }
 
 std::string compact(const nlohmann::json& v) {
   return v.is_string() ? v.get<std::string>() : v.dump();
+}
+
+// A plan's waypoints by name, a straight line's segments counted once: "approach x49, descend x3, grip".
+std::string waypoint_runs(const nlohmann::json& waypoints) {
+  std::string out, last;
+  int n = 0;
+  auto put = [&] {
+    if (n == 0) return;
+    out += (out.empty() ? "" : ", ") + last + (n > 1 ? " x" + std::to_string(n) : "");
+  };
+  for (const auto& w : waypoints) {
+    std::string name = w.is_object() ? w.value("name", "?") : "?";
+    if (name != last) put(), last = name, n = 0;
+    ++n;
+  }
+  put();
+  return out;
 }
 
 // One event as a human-readable line: "  1.234 s  event  key=value ...".
@@ -56,13 +70,53 @@ void print_event(const nlohmann::json& ev) {
   std::string line;
   for (const auto& [k, v] : ev.items()) {
     if (k == "ts" || k == "t_ms" || k == "event" || k == "detections" || k == "report" || k == "mono_ns") continue;
-    line += "  " + k + "=" + compact(v);
+    line += "  " + k + "=" + (k == "waypoints" && v.is_array() ? waypoint_runs(v) : compact(v));
   }
   std::printf("%8.3f s  %-14s%s\n", t, ev.value("event", "?").c_str(), line.c_str());
   // The scan's detections print as the paper's report (Figure 21).
   if (ev.contains("report") && ev["report"].is_string()) std::fputs(ev["report"].get<std::string>().c_str(), stdout);
   std::fflush(stdout);
 }
+
+// A job's sent/step/step_done lines folded into one line per phase ("moved  approach  49 segments  1.21 s"), for
+// people; --verbose (and --json) keep every line.
+bool verbose_steps = false;
+
+class PhaseFold {
+ public:
+  // True when ev was folded (nothing to print for it now); prints the finished phase first when one ends.
+  bool add(const nlohmann::json& ev) {
+    std::string e = ev.value("event", "");
+    bool stepwise = e == "sent" || e == "step" || e == "step_done";
+    if (verbose_steps) return false;
+    if (e == "step_done") {
+      std::string name = ev.value("name", "?");
+      if (name != name_) {
+        flush();
+        name_ = name, count_ = 0, t0_ = t1_;
+      }
+      ++count_;
+      t1_ = ev.value("t_ms", 0.0) / 1000.0;
+    } else if (!stepwise) {
+      flush();
+    } else if (name_.empty()) {
+      t1_ = ev.value("t_ms", 0.0) / 1000.0;
+    }
+    return stepwise;
+  }
+  void flush() {
+    if (name_.empty()) return;
+    std::printf("%8.3f s  %-14s  %-10s %3d %-8s %6.2f s\n", t1_, "moved", name_.c_str(), count_,
+                count_ == 1 ? "segment" : "segments", t1_ - t0_);
+    std::fflush(stdout);
+    name_.clear();
+  }
+
+ private:
+  std::string name_;
+  int count_ = 0;
+  double t0_ = 0, t1_ = 0;
+};
 
 // The final result as "key: value" lines (the report was printed with its event).
 void print_result(const nlohmann::json& result) {
@@ -99,6 +153,7 @@ int run_daemon_request(const std::string& socket, bool json, const daemon::Reque
   double timeout_s = o.timeout_s >= 0 ? o.timeout_s : default_timeout_s(request.command);
   auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   std::string line;
+  PhaseFold phases;
   for (;;) {
     int wait_ms = -1;
     if (timeout_s > 0)
@@ -122,6 +177,7 @@ int run_daemon_request(const std::string& socket, bool json, const daemon::Reque
       std::fprintf(stderr, "rbx1: unreadable reply line from rbx1d: %s\n", line.substr(0, 200).c_str());
       return 2;
     }
+    if (ev.contains("error") || ev.contains("result")) phases.flush();
     if (ev.contains("error")) {
       const auto& e = ev["error"];
       std::string code = e.value("code", "error");
@@ -133,7 +189,7 @@ int run_daemon_request(const std::string& socket, bool json, const daemon::Reque
       if (!o.json && print_final) print_result(ev["result"]);
       return 0;
     }
-    if (!o.json) print_event(ev);
+    if (!o.json && !phases.add(ev)) print_event(ev);
   }
 }
 
@@ -143,10 +199,11 @@ int run(const DaemonOptions& o, const daemon::Request& request) {
   return run_daemon_request(o.socket, o.json, request, nullptr, true, o.timeout_s);
 }
 
-CLI::App* add(CLI::App& app, std::shared_ptr<DaemonOptions> o, const char* name, const char* help) {
+CLI::App* add(CLI::App& app, std::shared_ptr<DaemonOptions> o, const std::string& name, const std::string& help) {
   CLI::App* sub = app.add_subcommand(name, help);
   sub->add_option("--socket", o->socket, "rbx1d control socket (default $RBX1_SOCKET or /run/rbx1/rbx1d.sock)");
   sub->add_flag("--json", o->json, "print the raw JSON event lines");
+  sub->add_flag("--verbose", verbose_steps, "print every step's sent/step/step_done line, not one line per phase");
   sub->add_option("--timeout", o->timeout_s,
                   "seconds to wait for the final reply line, 0 = no limit (default 10 for status, estop and "
                   "shutdown, no limit for jobs); exit 2 when it passes")
@@ -154,33 +211,106 @@ CLI::App* add(CLI::App& app, std::shared_ptr<DaemonOptions> o, const char* name,
   return sub;
 }
 
+// A bus line for people: "12:00:01.234  status  ready job=pick joints=[...]" or "events  #7 pick  step ...".
+void print_bus_line(const nlohmann::json& ev) {
+  std::string topic = ev.value("topic", "");
+  std::string ts = ev.value("ts", "");
+  std::string when = ts.size() >= 23 ? ts.substr(11, 12) : ts;
+  std::string line;
+  if (topic == "status") {
+    line = std::string(ev.value("ready", false) ? "ready" : "not ready") + "  job=" + compact(ev.value("job", nlohmann::json()));
+    if (ev.contains("joints_deg")) line += "  joints_deg=" + ev["joints_deg"].dump();
+    if (ev.contains("last_estop")) line += "  last_estop=" + compact(ev["last_estop"]);
+  } else if (topic == "scans") {
+    const auto& objects = ev.contains("detections") ? ev["detections"].value("objects", nlohmann::json::array())
+                                                    : nlohmann::json::array();
+    line = std::to_string(objects.size()) + " objects";
+    for (const auto& o : objects) line += "  #" + std::to_string(o.value("index", 0)) + " " + compact(o.value("label", nlohmann::json()));
+  } else if (topic == "events") {
+    line = "#" + std::to_string(ev.value("req", 0)) + " " + ev.value("cmd", "?") + "  ";
+    if (ev.contains("request")) line += "request " + ev["request"].dump();
+    else if (ev.contains("result")) line += "result";
+    else if (ev.contains("error")) line += "error " + ev["error"].value("code", "") + ": " + ev["error"].value("message", "");
+    else line += ev.value("event", "?");
+    for (const auto& [k, v] : ev.items()) {
+      static const std::set<std::string> shown{"topic", "seq", "ts", "t_ms", "event", "req", "cmd", "request", "result",
+                                               "error", "final", "missed", "detections", "report", "mono_ns"};
+      if (!shown.count(k)) line += "  " + k + "=" + compact(v);
+    }
+  } else {
+    line = ev.value("event", "?");
+  }
+  if (ev.value("missed", 0) > 0) line += "  (missed " + std::to_string(ev.value("missed", 0)) + ")";
+  std::printf("%s  %-7s %s\n", when.c_str(), topic.c_str(), line.c_str());
+  std::fflush(stdout);
+}
+
+// rbx1 watch [--topics status,events,scans]: the bus, one readable line each (--json: the raw lines).
+void add_watch_command(CLI::App& app, std::shared_ptr<DaemonOptions> o, int& exit_code) {
+  auto topics = std::make_shared<std::vector<std::string>>();
+  CLI::App* watch = add(app, o, "watch", daemon::command_spec(daemon::Command::Subscribe).help);
+  watch->add_option("--topics", *topics, "status, events, scans (default: all)")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"status", "events", "scans"}));
+  watch->callback([o, topics, &exit_code] {
+    daemon::Request r;
+    r.command = daemon::Command::Subscribe;
+    r.topics = *topics;
+    control::Client client;
+    std::string error;
+    if (client.connect(o->socket, error) < 0 || client.send(r) < 0) {
+      std::fprintf(stderr, "rbx1: %s\n", error.empty() ? "cannot send the request" : error.c_str());
+      exit_code = 2;
+      return;
+    }
+    std::string line;
+    while (client.read_line(line, -1) >= 0) {
+      nlohmann::json ev = nlohmann::json::parse(line, nullptr, false);
+      if (o->json) std::printf("%s\n", line.c_str()), std::fflush(stdout);
+      else if (ev.is_object() && ev.contains("error")) std::fprintf(stderr, "rbx1: %s\n", ev["error"].value("message", "").c_str());
+      else if (ev.is_object() && ev.contains("topic")) print_bus_line(ev);
+      if (ev.is_object() && (ev.contains("error") || ev.contains("result"))) {
+        exit_code = ev.contains("error") ? 1 : 0;
+        return;
+      }
+    }
+    std::fprintf(stderr, "rbx1: %s: rbx1d closed the connection\n", o->socket.c_str());
+    exit_code = 1;
+  });
+}
+
 }  // namespace
 
 void add_daemon_commands(CLI::App& app, int& exit_code) {
   auto o = std::make_shared<DaemonOptions>();
   o->socket = default_socket();
-  struct Simple {
-    const char* name;
-    const char* help;
-    daemon::Command command;
-  };
-  const Simple simple[] = {
-      {"status", "show the daemon's and the arm's state", daemon::Command::Status},
-      {"scan", "go to the scan pose, capture and detect; print the report", daemon::Command::Scan},
-      {"home", "move the arm to its home pose", daemon::Command::Home},
-      {"estop", "emergency stop: halt all motion at once and abort the job", daemon::Command::Estop},
-      {"clear-fault", "clear a latched fault (e-stop, heartbeat loss) in the firmware", daemon::Command::ClearFault},
-      {"shutdown", "stop rbx1d", daemon::Command::Shutdown},
-  };
-  for (const auto& s : simple) {
-    daemon::Command command = s.command;
-    add(app, o, s.name, s.help)->callback([o, command, &exit_code] {
+  // Every request that takes no field is a subcommand of the same name ('_' written '-'), with the table's help.
+  for (const auto& spec : daemon::command_table()) {
+    if (!spec.fields.empty()) continue;
+    std::string name = spec.name;
+    std::replace(name.begin(), name.end(), '_', '-');
+    daemon::Command command = spec.command;
+    add(app, o, name, spec.help)->callback([o, command, &exit_code] {
       daemon::Request r;
       r.command = command;
       exit_code = run(*o, r);
     });
   }
-  CLI::App* pick = add(app, o, "pick", "pick the named object and put it at a place");
+  add_watch_command(app, o, exit_code);
+  CLI::App* commands = app.add_subcommand("commands", "list the daemon's requests and error codes (the command table)");
+  auto format = std::make_shared<std::string>("text");
+  commands->add_option("--format", *format, "text, markdown (the README's table) or json")
+      ->check(CLI::IsMember({"text", "markdown", "json"}));
+  commands->callback([format] {
+    if (*format == "json")
+      std::printf("%s\n", nlohmann::json{{"commands", daemon::command_table_json()}, {"errors", daemon::error_codes_json()}}
+                               .dump(2).c_str());
+    else if (*format == "markdown")
+      std::printf("%s\n%s", daemon::command_table_markdown().c_str(), daemon::error_codes_markdown().c_str());
+    else
+      for (const auto& c : daemon::command_table()) std::printf("%-20s %s\n", c.name, c.help);
+  });
+  CLI::App* pick = add(app, o, "pick", daemon::command_spec(daemon::Command::Pick).help);
   pick->add_option("name", o->name, "the object's label in the taught library")->required();
   pick->add_option("--place", o->place, "where to put it (a place of the [arm] config)")->required();
   pick->callback([o, &exit_code] {

@@ -1,4 +1,5 @@
-// cmd_jobs.cpp - rbx1 sort|clear|recipe save|history|pause|resume|cancel: the cell's jobs through rbx1d.
+// cmd_jobs.cpp - rbx1 sort|clear|recipe save|history: the cell's jobs through rbx1d (pause, resume, cancel come
+// from the command table with the other requests that take no field).
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -131,20 +132,7 @@ void add_jobs_commands(CLI::App& app, int& exit_code) {
     else if (o->json) std::printf("%s\n", result.dump().c_str());
     else print_history(result);
   });
-
-  const std::pair<const char*, daemon::Command> controls[] = {
-      {"pause", daemon::Command::Pause}, {"resume", daemon::Command::Resume}, {"cancel", daemon::Command::Cancel}};
-  for (const auto& [name, command] : controls) {
-    daemon::Command c = command;
-    std::string help = std::string(name) + " the running sort or clear" +
-                       (c == daemon::Command::Pause ? " (after the pick under way; holds at the scan pose)"
-                        : c == daemon::Command::Cancel ? " (after the pick under way; goes home)" : "");
-    add(app, o, name, help.c_str())->callback([o, c, &exit_code] {
-      daemon::Request r;
-      r.command = c;
-      exit_code = run_daemon_request(o->socket, o->json, r, nullptr, true, 10);
-    });
-  }
+  // pause, resume, cancel take no field: cmd_daemon.cpp makes them subcommands from the command table.
 }
 
 }  // namespace rbx1::cli

@@ -16,7 +16,7 @@ void add_calibrate_commands(CLI::App& app, int& exit_code);
 void add_daemon_commands(CLI::App& app, int& exit_code);
 // jog, pose, place, background, calibrate-workspace, markers: the operator's commands (host/cli/cmd_operator.cpp).
 void add_operator_commands(CLI::App& app, int& exit_code);
-// sort, clear, recipe save, history, pause, resume, cancel: the cell's jobs (host/cli/cmd_jobs.cpp).
+// sort, clear, recipe save, history: the cell's jobs (host/cli/cmd_jobs.cpp).
 void add_jobs_commands(CLI::App& app, int& exit_code);
 
 // $RBX1_SOCKET or the default socket path.

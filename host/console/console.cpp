@@ -17,6 +17,8 @@
 #include <spdlog/spdlog.h>
 
 #include "access.hpp"
+#include "command_table.hpp"
+#include "error_codes.hpp"
 #include "event_hub.hpp"
 #include "live_view.hpp"
 #include "request.hpp"
@@ -52,22 +54,14 @@ void send_json(httplib::Response& res, int status, const json& body) {
   res.set_content(body.dump(-1, ' ', false, json::error_handler_t::replace), "application/json");
 }
 
-// Errors of the request itself (HTTP 400), as the socket's parse_request gives them.
-bool is_request_error(const std::string& code) {
-  return code == "bad_json" || code == "bad_request" || code == "unknown_command" || code == "missing_field" ||
-         code == "bad_field" || code == "line_too_long";
-}
-
 int http_status_for(const json& final_line) {
   if (final_line.contains("result")) return 200;
   std::string code = final_line["error"].value("code", "");
-  if (is_request_error(code)) return 400;
+  if (daemon::is_request_error(code)) return 400;  // the request itself (error_codes.hpp)
   if (code == "shutting_down") return 503;
   return 409;  // the arm could not do it now (busy, not_ready, estop, object_absent, ...)
 }
 
-// The commands the request layer knows, of those the page has controls for: the page shows the operator's
-// panels only when the daemon takes their requests.
 constexpr const char* kChartJs = "/usr/share/javascript/chart.js/chart.min.js";
 
 std::string read_file(const char* path) {
@@ -77,16 +71,23 @@ std::string read_file(const char* path) {
   return ss.str();
 }
 
+// The commands the request layer knows that a console may call (command_table.hpp: all but the socket-only ones).
 json known_commands() {
   json out = json::array();
-  for (const char* name : {"status", "scan", "pick", "home", "estop", "clear_fault", "jog", "pose_save", "place_save",
-                           "background", "teach", "calibrate_workspace", "sort", "clear", "recipe_save", "history",
-                           "pause", "resume", "cancel"}) {
-    daemon::Request r;
-    daemon::Error e;
-    if (daemon::parse_request(json{{"cmd", name}}.dump(), r, e) || e.code != "unknown_command") out.push_back(name);
-  }
+  for (const auto& c : daemon::command_table())
+    if (c.access != daemon::Access::Local) out.push_back(c.name);
   return out;
+}
+
+// The token class of POST /api/<cmd>, from the command table (an unknown command is refused after the token check).
+Kind kind_of(const std::string& cmd) {
+  const daemon::CommandSpec* spec = daemon::find_command(cmd);
+  if (!spec) return Kind::Act;
+  switch (spec->access) {
+    case daemon::Access::Read: return Kind::Read;
+    case daemon::Access::Estop: return Kind::Estop;
+    default: return Kind::Act;
+  }
 }
 
 // One request's lines, collected until its final line.
@@ -121,7 +122,8 @@ struct Console::Impl {
   std::thread thread;
   std::atomic<bool> listen_returned{false};
   std::atomic<int> streams{0};
-  std::atomic<uint64_t> next_request{1};
+  std::shared_ptr<daemon::Subscription> bus_events;  // every client's requests, for the event log
+  std::thread bus_thread;
   int port = 0;
   json info;
   std::string scans_dir;  // the history's scan images ("" = none)
@@ -200,29 +202,23 @@ struct Console::Impl {
       send_json(res, 400, error_json(err.code, err.message));
       return;
     }
-    if (request.command == daemon::Command::Shutdown) {
-      send_json(res, 403, error_json("not_allowed", "shutdown is not available from the console (rbx1 shutdown)"));
+    const daemon::CommandSpec& spec = daemon::command_spec(request.command);
+    if (spec.access == daemon::Access::Local) {
+      send_json(res, 403, error_json("not_allowed", std::string(spec.name) + " is not available from the console (the Unix socket only)"));
       return;
     }
-    const bool logged = request.command != daemon::Command::Status;  // the page polls status: keep it out of the log
-    const uint64_t id = next_request++;
-    const std::string cmd = daemon::command_name(request.command);
-    if (logged) {
-      spdlog::info("console: request {}", daemon::request_json(request).dump());
-      hub.publish({{"req", id}, {"cmd", cmd}, {"request", daemon::request_json(request)}});
+    if (spec.mode == daemon::Mode::Immediate && spec.access == daemon::Access::Read && request.command != daemon::Command::Status &&
+        request.command != daemon::Command::History) {
+      send_json(res, 400, error_json("bad_request", std::string(spec.name) + ": use GET /api/events for the bus"));
+      return;
     }
+    if (spec.access != daemon::Access::Read) spdlog::info("console: request {}", daemon::request_json(request).dump());
     auto ex = std::make_shared<Exchange>();
     auto present = std::make_shared<std::atomic<bool>>(true);
     const bool watch_page = valid_page_id(page) && page_open(page);
-    // Called with the reply's lock held: only stores and publishes, never waits.
-    daemon::Reply::Sink sink = [this, ex, id, cmd, logged](const std::string& line, bool final_line) {
+    // Called with the reply's lock held: only stores, never waits. The event log gets the lines from the bus.
+    daemon::Reply::Sink sink = [ex](const std::string& line, bool final_line) {
       json l = json::parse(line, nullptr, false);
-      if (logged) {
-        json e = l;
-        e["req"] = id;
-        e["cmd"] = cmd;
-        hub.publish(std::move(e));
-      }
       std::lock_guard lock(ex->mutex);
       if (final_line) {
         ex->final_line = l;
@@ -332,7 +328,7 @@ struct Console::Impl {
     });
     http.Post(R"(/api/([a-z_]{1,40}))", [this](const httplib::Request& req, httplib::Response& res) {
       std::string cmd = req.matches[1];
-      if (!allowed(req, res, cmd == "estop" ? Kind::Estop : Kind::Act)) return;
+      if (!allowed(req, res, kind_of(cmd))) return;
       json body = req.body.empty() ? json::object() : json::parse(req.body, nullptr, false);
       if (body.is_discarded()) return send_json(res, 400, error_json("bad_json", "request body is not valid JSON"));
       if (!body.is_object()) return send_json(res, 400, error_json("bad_request", "request body must be a JSON object"));
@@ -447,11 +443,12 @@ struct Console::Impl {
   }
 };
 
-Console::Console(ConsoleConfig config, Submit submit, camera::FrameSource* camera, double job_timeout_s,
-                 nlohmann::json info)
+Console::Console(ConsoleConfig config, Submit submit, daemon::Bus& bus, camera::FrameSource* camera,
+                 double job_timeout_s, nlohmann::json info)
     : impl_(std::make_unique<Impl>(std::move(config), std::move(submit), camera, job_timeout_s)) {
   impl_->info = std::move(info);
   impl_->info["commands"] = known_commands();
+  impl_->bus_events = bus.subscribe(unsigned(daemon::Topic::Events), 1024);
 }
 
 Console::~Console() { stop(); }
@@ -486,6 +483,16 @@ int Console::start(std::string& error) {
     m.http.listen_after_bind();
     m.listen_returned = true;
   });
+  m.bus_thread = std::thread([&m] {  // the bus's request lines into the event log, as they come
+    daemon::BusMessage msg;
+    while (!m.bus_events->closed())
+      if (m.bus_events->next(msg, 500)) {
+        json e = *msg.body;
+        e.erase("topic");
+        e.erase("seq");
+        m.hub.publish(std::move(e));
+      }
+  });
   // httplib's stop() shuts only a listener already running: a stop right after start would be lost and the join in
   // stop() would wait for ever. Start returns once it runs.
   while (!m.http.is_running() && !m.listen_returned) std::this_thread::sleep_for(std::chrono::milliseconds(1));
@@ -494,6 +501,8 @@ int Console::start(std::string& error) {
 
 void Console::stop() {
   Impl& m = *impl_;
+  m.bus_events->close();
+  if (m.bus_thread.joinable()) m.bus_thread.join();
   m.hub.close();  // ends the event and live streams
   m.live.stop();
   m.http.stop();

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
+#include "bus.hpp"
 #include "console_config.hpp"
 #include "frame_source.hpp"
 #include "reply.hpp"
@@ -18,8 +19,9 @@ class Console {
  public:
   // submit: the control socket's request handler (Machine::handle); it ends each reply, now or from a job.
   using Submit = daemon::Handler;
+  // bus: the daemon's bus, whose events (every client's requests) the event log shows.
   // info: what the page shows as it is (GET /api/info), e.g. {"places": [...]}.
-  Console(ConsoleConfig config, Submit submit, camera::FrameSource* camera, double job_timeout_s,
+  Console(ConsoleConfig config, Submit submit, daemon::Bus& bus, camera::FrameSource* camera, double job_timeout_s,
           nlohmann::json info = nlohmann::json::object());
   ~Console();
   // Binds config.bind and serves on its own threads. 0, or a negative errno with error ("127.0.0.1:8080: ...").

@@ -143,6 +143,7 @@ const char* kToken = "0123456789abcdef0123";
 struct Fixture {
   std::vector<rbx1::daemon::Request> seen;
   std::mutex mutex;
+  rbx1::daemon::Bus bus;
   std::unique_ptr<rbx1::camera::FrameSource> camera;
   std::unique_ptr<Console> console;
   std::unique_ptr<httplib::Client> client;
@@ -164,11 +165,13 @@ struct Fixture {
             std::lock_guard lock(mutex);
             seen.push_back(r);
           }
+          // As rbx1d's handler does: every request but reads on the bus, which the event log follows.
+          if (r.command != rbx1::daemon::Command::Status) reply->publish_to(bus, rbx1::daemon::request_json(r));
           reply->event("working", {{"n", 1}});
           if (r.command == rbx1::daemon::Command::Home) reply->error("not_ready", "the arm is not ready");
           else reply->result({{"cmd", rbx1::daemon::command_name(r.command)}, {"name", r.name}});
         },
-        camera.get(), 5, json{{"places", {"tray"}}});
+        bus, camera.get(), 5, json{{"places", {"tray"}}});
     EXPECT_EQ(console->start(error), 0) << error;
     client = std::make_unique<httplib::Client>("127.0.0.1", console->port());
   }
@@ -315,8 +318,9 @@ TEST(ConsoleHttp, NonLoopbackReadsNeedTheToken) {
   cfg.loopback = false;
   cfg.token = kToken;
   int calls = 0;
+  rbx1::daemon::Bus bus;
   Console console(cfg, [&](const rbx1::daemon::Request&, std::shared_ptr<rbx1::daemon::Reply> r) { ++calls; r->result({}); },
-                  camera.get(), 5);
+                  bus, camera.get(), 5);
   ASSERT_EQ(console.start(error), 0) << error;
   httplib::Client c("127.0.0.1", console.port());
   EXPECT_EQ(c.Get("/api/status")->status, 401);
@@ -340,11 +344,12 @@ TEST(ConsoleHttp, APortInUseIsRefusedNotShared) {
   cfg.bind = "127.0.0.1:0";
   cfg.host = "127.0.0.1";
   cfg.port = 0;
-  Console first(cfg, handler, camera.get(), 5);
+  rbx1::daemon::Bus bus;
+  Console first(cfg, handler, bus, camera.get(), 5);
   ASSERT_EQ(first.start(error), 0) << error;
   cfg.port = first.port();
   cfg.bind = "127.0.0.1:" + std::to_string(first.port());
-  Console second(cfg, handler, camera.get(), 5);
+  Console second(cfg, handler, bus, camera.get(), 5);
   EXPECT_LT(second.start(error), 0);
   EXPECT_EQ(error, "console: cannot listen on " + cfg.bind + ": Address already in use");
 }

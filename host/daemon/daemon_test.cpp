@@ -11,15 +11,18 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <thread>
 
 #include <gtest/gtest.h>
 #include <spdlog/sinks/ringbuffer_sink.h>
 #include <spdlog/spdlog.h>
 
+#include "command_table.hpp"
 #include "control_client.hpp"
 #include "daemon_config.hpp"
 #include "daemon_setup.hpp"
+#include "error_codes.hpp"
 #include "machine.hpp"
 #include "request.hpp"
 #include "server.hpp"
@@ -376,4 +379,56 @@ TEST(DaemonGpioEstop, EdgeDuringAPickStopsTheArmAndAbortsTheJob) {
   EXPECT_EQ(machine.call(Command::Status)["result"]["ready"], true);
   machine.stop();
   EXPECT_FALSE(led->value()) << "the status LED stays lit after the daemon stopped";
+}
+
+TEST(CommandTable, EveryCommandHasOneEntryAndRoundTrips) {
+  std::set<std::string> names;
+  for (int c = int(Command::Status); c <= int(Command::Subscribe); ++c) {
+    const CommandSpec& spec = command_spec(Command(c));
+    EXPECT_EQ(spec.command, Command(c)) << "Command " << c << " has no command_table entry";
+    EXPECT_TRUE(names.insert(spec.name).second) << spec.name;
+    EXPECT_EQ(find_command(spec.name), &spec);
+    EXPECT_STRNE(spec.help, "");
+  }
+  EXPECT_EQ(names.size(), command_table().size());
+  // Each request the table describes, written by the client and read back by the daemon, is the same request.
+  for (const char* line : {R"({"cmd":"pick","name":"bolt","place":"tray"})", R"({"cmd":"jog","joint":3,"deg":-2.5})",
+                           R"({"cmd":"jog","mm":[0,0,-1]})", R"({"cmd":"teach","index":2,"name":"nut"})",
+                           R"({"cmd":"calibrate_workspace","action":"record","marker":0})",
+                           R"({"cmd":"subscribe","topics":["status","scans"]})", R"({"cmd":"background","frames":4})"}) {
+    Request r;
+    Error e;
+    ASSERT_TRUE(parse_request(line, r, e)) << line << ": " << e.message;
+    EXPECT_EQ(request_json(r), nlohmann::json::parse(line)) << line;
+  }
+}
+
+TEST(CommandTable, FieldsAreCheckedAsDeclared) {
+  EXPECT_EQ(parse_error(R"({"cmd":"subscribe","topics":["status","weather"]})"), "bad_field");
+  EXPECT_EQ(parse_error(R"({"cmd":"subscribe","topics":[]})"), "bad_field");
+  EXPECT_EQ(parse_error(R"({"cmd":"subscribe","topics":"status"})"), "bad_field");
+  EXPECT_EQ(parse_error(R"({"cmd":"home","speed":2})"), "bad_field");
+  Request r;
+  Error e;
+  ASSERT_TRUE(parse_request(R"({"cmd":"subscribe"})", r, e));
+  EXPECT_TRUE(r.topics.empty());
+  // Who may call what, as the console and MQTT read it.
+  EXPECT_EQ(command_spec(Command::Status).access, Access::Read);
+  EXPECT_EQ(command_spec(Command::Estop).access, Access::Estop);
+  EXPECT_EQ(command_spec(Command::Pick).access, Access::Act);
+  EXPECT_EQ(command_spec(Command::Shutdown).access, Access::Local);
+  EXPECT_EQ(command_spec(Command::Pick).mode, Mode::Job);
+  EXPECT_EQ(command_spec(Command::Estop).mode, Mode::Immediate);
+}
+
+TEST(ErrorCodes, OneListClassifiesEveryCode) {
+  for (const char* c : {"bad_json", "bad_request", "unknown_command", "missing_field", "bad_field", "line_too_long"})
+    EXPECT_TRUE(is_request_error(c)) << c;
+  for (const char* c : {"busy", "not_ready", "object_absent", "estop", "link_down", "timeout"}) {
+    EXPECT_FALSE(is_request_error(c)) << c;
+    EXPECT_NE(find_error(c), nullptr) << c;
+  }
+  EXPECT_EQ(find_error("made_up"), nullptr);
+  std::set<std::string> codes;
+  for (const auto& e : error_codes()) EXPECT_TRUE(codes.insert(e.code).second) << e.code;
 }

@@ -1,6 +1,8 @@
 // machine.cpp - the job runner: link preparation, the paper's pick sequence, status, e-stop, shutdown.
 #include "machine.hpp"
 
+#include "command_table.hpp"
+
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -108,7 +110,28 @@ int Machine::start(std::string& error) {
   if (int r = start_gpio(error); r < 0) return r;
   link_.set_timing(config_.link.timeout_ms, config_.link.retries);
   worker_ = std::thread([this] { worker(); });
+  status_thread_ = std::thread([this] { publish_status(); });
   return 0;
+}
+
+void Machine::publish_status() {
+  constexpr auto kPoll = std::chrono::milliseconds(100);
+  constexpr auto kEvery = std::chrono::milliseconds(BusStreams::kStatusEveryMs);
+  nlohmann::json last;
+  auto sent = Clock::now();
+  std::unique_lock lock(mutex_);
+  while (!stopping_) {
+    lock.unlock();
+    nlohmann::json now = status_reply();
+    if (now != last || Clock::now() - sent >= kEvery) {
+      last = now;
+      sent = Clock::now();
+      now["ts"] = iso_now();
+      bus_.publish(Topic::Status, std::move(now));
+    }
+    lock.lock();
+    status_cv_.wait_for(lock, kPoll, [this] { return stopping_; });
+  }
 }
 
 void Machine::stop() {
@@ -120,7 +143,10 @@ void Machine::stop() {
   }
   abort_ = true;
   cv_.notify_all();
+  status_cv_.notify_all();
   if (worker_.joinable()) worker_.join();
+  if (status_thread_.joinable()) status_thread_.join();
+  streams_.stop();
   if (estop_input_) estop_input_->stop();
   if (start_input_) start_input_->stop();
   set_led(false);
@@ -172,10 +198,20 @@ nlohmann::json Machine::call(Command command, int timeout_ms) {
 }
 
 void Machine::handle(const Request& request, std::shared_ptr<Reply> reply) {
+  const CommandSpec& spec = command_spec(request.command);
+  if (spec.access != Access::Read) reply->publish_to(bus_, request_json(request));
   switch (request.command) {
     case Command::Status:
       reply->result(status_reply());
       return;
+    case Command::Subscribe: {
+      unsigned topics = 0;
+      for (const auto& name : request.topics)
+        if (Topic t; topic_from_name(name, t)) topics |= unsigned(t);
+      streams_.start(topics ? topics : unsigned(Topic::Status) | unsigned(Topic::Events) | unsigned(Topic::Scans),
+                     std::move(reply));
+      return;
+    }
     case Command::Estop: {
       bool had_job;
       {
@@ -621,6 +657,7 @@ bool Machine::capture_and_detect(Reply& reply, nlohmann::json& detections, std::
   }
   last_annotated_ = vision::annotate(processed, det, vision_->calibrated());  // also the history's scan image
   if (on_scan_) on_scan_(last_annotated_, detections);  // before the event
+  bus_.publish(Topic::Scans, {{"ts", iso_now()}, {"detections", detections}});
   reply.event("detected", ev);
   return true;
 }

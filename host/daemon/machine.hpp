@@ -12,6 +12,8 @@
 #include <string>
 #include <thread>
 
+#include "bus.hpp"
+#include "bus_stream.hpp"
 #include "daemon_setup.hpp"
 #include "history.hpp"
 #include "motion.hpp"
@@ -51,6 +53,8 @@ class Machine {
   using ScanHook = std::function<void(const cv::Mat& annotated, const nlohmann::json& detections)>;
   void on_scan(ScanHook f) { on_scan_ = std::move(f); }
   camera::FrameSource* camera() { return camera_.get(); }
+  // The status and event bus: every request's lines but reads, status on change (at least every 2 s), each scan.
+  Bus& bus() { return bus_; }
 
  private:
   struct Job {
@@ -107,6 +111,12 @@ class Machine {
   MotionHooks hooks(Reply& reply);
   nlohmann::json status_reply();
   void note_status(const rbx1_status_resp& s);
+  void publish_status();  // status thread: the status on the bus when it changed, and at least every 2 s
+
+  Bus bus_;  // before everything that publishes on it
+  BusStreams streams_{bus_};
+  std::thread status_thread_;
+  std::condition_variable status_cv_;
 
   Config config_;
   link::Link link_;

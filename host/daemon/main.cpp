@@ -97,7 +97,7 @@ int main(int argc, char** argv) {
         [&machine](const rbx1::daemon::Request& r, std::shared_ptr<rbx1::daemon::Reply> reply) {
           machine.handle(r, std::move(reply));
         },
-        machine.camera(), config.daemon.job_timeout_s, nlohmann::json{{"places", places}});
+        machine.bus(), machine.camera(), config.daemon.job_timeout_s, nlohmann::json{{"places", places}});
     console->serve_scans(config.daemon.state_dir + "/" + rbx1::history::kScansDir);
     if (console->start(error) < 0) {
       spdlog::error("{}", error);

@@ -1,9 +1,11 @@
-// motion.cpp - the journal of sent vs completed queue entries, flow control on queue_free (batches streamed with
-// the link's window), and link recovery.
+// motion.cpp - a job's queue entries over the link: flow control on queue_free (batches streamed with the link's
+// window), the loop around the journal (motion_journal.cpp), fault handling and link recovery.
 #include "motion.hpp"
+#include "motion_journal.hpp"
 
 #include <algorithm>
 #include <chrono>
+#include <optional>
 #include <thread>
 
 #include <spdlog/spdlog.h>
@@ -120,229 +122,249 @@ bool counters_went_back(const rbx1_status_resp& before, const rbx1_status_resp& 
          int16_t(uint16_t(now.moves_flushed - before.moves_flushed)) < 0;
 }
 
-MotionResult Motion::run(const std::vector<MotionStep>& steps, const MotionHooks& hooks) {
-  MotionResult res;
-  auto fail = [&](std::string code, std::string message) {
-    res.ok = false;
-    res.code = std::move(code);
-    res.message = std::move(message);
-    return res;
-  };
-  rbx1_status_resp st{};
-  std::string err;
-  bool have_last = false;
-  // Read the firmware's state; on a link failure wait for it to come back. 0, or -1 after fail() was filled.
-  // A firmware whose counters went back or that lost its positions is not the one this run talked to.
-  auto read_status = [&]() -> int {
-    for (;;) {
-      int r = link_.status(st);
-      if (r == 0) {
-        bool back = have_last && counters_went_back(res.last, st);
-        res.last = st;
-        have_last = true;
-        if (hooks.on_status) hooks.on_status(st);
-        if (back || st.homed != 0x3F) {
-          fail("firmware_reset", std::string("the firmware ") +
-                                     (back ? "counters went back" : "lost its joint positions") +
-                                     " (reset?); refusing to guess the arm's state");
-          return -1;
-        }
-        return 0;
-      }
-      if (!link_error(r)) {
-        fail("link_error", link_.name() + ": STATUS failed (" + std::to_string(r) + ")");
-        return -1;
-      }
-      if (recover(hooks, err) < 0) {
-        fail(hooks.aborted() ? hooks.abort_reason() : "link_down", err);
-        return -1;
-      }
-      res.recovered++;
-    }
-  };
+// One run(): the loop over the job's entries as named steps. Each step returns false once fail() filled the result.
+class Motion::Run {
+ public:
+  Run(Motion& motion, const std::vector<MotionStep>& steps, const MotionHooks& hooks)
+      : motion_(motion), link_(motion.link_), steps_(steps), hooks_(hooks) {}
 
-  if (read_status() < 0) return res;
-  if (st.state == RBX1_STATE_FAULT)
-    return fail("fault", "firmware is in FAULT (" + fault_names(st.faults).dump() + "); clear_fault first");
-  // Entries this host did not send (a previous daemon's) never run under this job: stop and flush them.
-  int foreign = 0;
-  if (stop_foreign(link_, st, foreign, err) < 0) return fail("link_error", err);
-  if (foreign || st.state != RBX1_STATE_IDLE) {
-    hooks.emit("stopped_foreign", {{"entries", foreign}, {"firmware", status_json(st)}});
-    if (st.state != RBX1_STATE_IDLE) return fail("fault", "firmware not idle after stopping foreign entries (" +
-                                                              std::string(state_name(st.state)) + ")");
-    res.last = st;
+  MotionResult go() {
+    if (!start()) return res_;
+    while (!journal_->finished()) {
+      if (hooks_.aborted()) {
+        fail(hooks_.abort_reason(), "job aborted at step " + std::to_string(done() + 1) + " (" + steps_[done()].name + ")");
+        return res_;
+      }
+      if (!send_ahead() || !poll()) return res_;
+      Next next = handle_faults();
+      if (next == Next::Failed) return res_;
+      if (next == Next::Again) continue;
+      if (!check_flushed() || !check_timeout()) return res_;
+    }
+    res_.ok = true;
+    return res_;
   }
-  // The journal, from the firmware's own counters: of the entries accepted since this run began (A), D completed
-  // and F were flushed; the rest (A - D - F) wait in its queue. Steps complete in order, so steps[0..D) are done
-  // and steps[D..D+queued) are queued; a flush (STOP, heartbeat loss) sends the rest again.
-  const rbx1_status_resp base = st;
-  auto since = [](uint16_t now, uint16_t then) { return size_t(uint16_t(now - then)); };
-  const size_t n = steps.size();
-  size_t accepted = 0;   // entries this run had accepted (A as the journal knows it)
-  size_t sent = 0;       // next step to send
-  size_t done = 0;       // steps completed
-  size_t announced = 0;  // steps whose start was reported
-  size_t flushed = 0;     // steps flushed and not yet handled (sent again after a heartbeat loss)
-  uint8_t queue_free = st.queue_free;
-  Clock::time_point head_since = Clock::now();
-  // Reconciles the journal with a fresh STATUS. 0, or -1 after fail().
-  auto reconcile = [&]() -> int {
-    size_t a = since(st.moves_accepted, base.moves_accepted), d = since(st.moves_done, base.moves_done),
-           f = since(st.moves_flushed, base.moves_flushed);
-    if (a != accepted || d + f > a || d > n) {
-      fail("firmware_reset", "the firmware's counters (accepted " + std::to_string(a) + ", done " + std::to_string(d) +
-                                 ", flushed " + std::to_string(f) + " since the job began) disagree with the " +
-                                 std::to_string(accepted) + " entries this job sent; refusing to guess the arm's state");
-      return -1;
-    }
-    while (done < d) {
-      nlohmann::json j = step_json(steps[done], done);
-      j["moves_done"] = st.moves_done;
-      j["position"] = std::vector<int32_t>(st.position, st.position + RBX1_JOINTS);
-      hooks.emit("step_done", j);
-      ++done;
-      if (announced < sent && announced == done) {
-        hooks.emit("step", step_json(steps[announced], announced));
-        ++announced;
-      }
-      head_since = Clock::now();
-    }
-    size_t queued = a - d - f;
-    if (done + queued < sent) {  // flushed: those steps never ran; the fault checks below decide what follows
-      flushed += sent - done - queued;
-      sent = done + queued;
-      if (announced > sent) announced = sent;
-    }
-    queue_free = st.queue_free;
-    return 0;
-  };
 
-  while (done < n) {
-    if (hooks.aborted()) return fail(hooks.abort_reason(), "job aborted at step " + std::to_string(done + 1) + " (" + steps[done].name + ")");
-    // Send ahead while the queue has room (never while the firmware stops, homes or holds a fault).
-    bool can_send = st.state == RBX1_STATE_IDLE || st.state == RBX1_STATE_MOVING;
-    while (can_send && sent < n && queue_free > 0) {
-      // A batch of at most queue_free entries goes out as one stream with the link's window in flight; with no
-      // more entries than the queue has room for, none is refused QUEUE_FULL between accepted ones, so the
-      // firmware (which runs requests in SEQ order) accepts a prefix of any batch whose answers were lost.
-      const size_t first = sent, count = std::min<size_t>(queue_free, n - sent);
-      std::vector<link::StreamRequest> batch(count);
-      for (size_t i = 0; i < count; ++i) {
-        const MotionStep& s = steps[first + i];
-        if (s.gripper) {
-          rbx1_gripper_req req{s.pulse_us, s.dwell_ms};
-          batch[i].type = RBX1_MSG_GRIPPER;
-          batch[i].len = rbx1_gripper_req_pack(&req, batch[i].payload);
-        } else {
-          rbx1_move_req req{};
-          for (int j = 0; j < RBX1_JOINTS; ++j) req.target[j] = s.target[j];
-          req.duration_ms = s.duration_ms;
-          batch[i].type = RBX1_MSG_MOVE;
-          batch[i].len = rbx1_move_req_pack(&req, batch[i].payload);
-        }
+ private:
+  enum class Next { On, Again, Failed };
+
+  bool fail(std::string code, std::string message) {
+    res_.ok = false;
+    res_.code = std::move(code);
+    res_.message = std::move(message);
+    return false;
+  }
+  bool fail(const JournalError& e) { return fail(e.code, e.message); }
+  Next failed(std::string code, std::string message) {
+    fail(std::move(code), std::move(message));
+    return Next::Failed;
+  }
+  size_t done() const { return journal_->done(); }
+  std::string step_name(size_t i) const { return i < steps_.size() ? steps_[i].name : "end"; }
+
+  // Reads the firmware's state; on a link failure waits for it to come back. A firmware whose counters went back
+  // or that lost its positions is not the one this run talked to.
+  bool read_status() {
+    for (;;) {
+      int r = link_.status(st_);
+      if (r == 0) {
+        bool back = have_last_ && counters_went_back(res_.last, st_);
+        res_.last = st_;
+        have_last_ = true;
+        if (hooks_.on_status) hooks_.on_status(st_);
+        if (back || st_.homed != 0x3F)
+          return fail("firmware_reset", std::string("the firmware ") +
+                                            (back ? "counters went back" : "lost its joint positions") +
+                                            " (reset?); refusing to guess the arm's state");
+        return true;
       }
-      int r = link_.stream(batch);
-      size_t k = 0;  // answers taken in order
-      bool refused = false;
-      for (; k < count && batch[k].answered; ++k) {
-        const MotionStep& s = steps[sent];
-        uint8_t status = batch[k].resp_len >= 1 ? batch[k].resp[0] : uint8_t(RBX1_BAD_LENGTH);
-        if (batch[k].resp_len >= 2) queue_free = batch[k].resp[1];
-        if (status == RBX1_QUEUE_FULL || status == RBX1_BUSY || status == RBX1_FAULT_ACTIVE) {
-          // Room or state comes back (poll and retry), or a fault latched since the last STATUS: the loop below
-          // decides (e-stop ends the job, a lost heartbeat is recovered, anything else fails it by name).
-          queue_free = 0;
-          refused = true;
+      if (!link_error(r)) return fail("link_error", link_.name() + ": STATUS failed (" + std::to_string(r) + ")");
+      if (!recover()) return false;
+    }
+  }
+
+  // Waits for the link to come back (Motion::recover); a failure ends the run (aborted: by its reason).
+  bool recover() {
+    if (motion_.recover(hooks_, err_) < 0) return fail(hooks_.aborted() ? hooks_.abort_reason() : "link_down", err_);
+    res_.recovered++;
+    return true;
+  }
+
+  // The first STATUS: no fault, and entries this host did not send (a previous daemon's) stopped and flushed, so
+  // that they never run under this job. The journal counts from the state after that.
+  bool start() {
+    if (!read_status()) return false;
+    if (st_.state == RBX1_STATE_FAULT)
+      return fail("fault", "firmware is in FAULT (" + fault_names(st_.faults).dump() + "); clear_fault first");
+    int foreign = 0;
+    if (stop_foreign(link_, st_, foreign, err_) < 0) return fail("link_error", err_);
+    if (foreign || st_.state != RBX1_STATE_IDLE) {
+      hooks_.emit("stopped_foreign", {{"entries", foreign}, {"firmware", status_json(st_)}});
+      if (st_.state != RBX1_STATE_IDLE)
+        return fail("fault", "firmware not idle after stopping foreign entries (" +
+                                 std::string(state_name(st_.state)) + ")");
+      res_.last = st_;
+    }
+    std::vector<std::string> names;
+    for (const MotionStep& s : steps_) names.push_back(s.name);
+    journal_.emplace(std::move(names), st_);
+    head_since_ = Clock::now();
+    return true;
+  }
+
+  // Sends batches ahead while the queue has room (never while the firmware stops, homes or holds a fault), then
+  // announces the head of the queue.
+  bool send_ahead() {
+    bool can_send = st_.state == RBX1_STATE_IDLE || st_.state == RBX1_STATE_MOVING;
+    while (can_send && journal_->next_batch() > 0) {
+      bool more = true;
+      if (!send_batch(more)) return false;
+      if (!more) break;
+    }
+    std::vector<JournalEvent> events;
+    journal_->announce(events);
+    report(events);
+    return true;
+  }
+
+  // One batch as one stream with the link's window in flight. more: false after a refusal (room or state comes
+  // back: poll and retry; a fault latched since the last STATUS is for handle_faults) or an outage.
+  bool send_batch(bool& more) {
+    std::vector<link::StreamRequest> batch = make_batch(journal_->sent(), journal_->next_batch());
+    int r = link_.stream(batch);
+    std::vector<JournalEvent> events;
+    JournalError error;
+    BatchEnd end = journal_->take_answers(batch, events, error);
+    report(events);
+    if (error) return fail(error);
+    more = end != BatchEnd::Refused && r == 0;
+    if (end == BatchEnd::Refused || r == 0) return true;
+    if (!link_error(r)) return fail("link_error", link_.name() + ": request failed (" + std::to_string(r) + ")");
+    return after_outage();  // then handle_faults() sees a heartbeat loss before more is sent
+  }
+
+  std::vector<link::StreamRequest> make_batch(size_t first, size_t count) const {
+    std::vector<link::StreamRequest> batch(count);
+    for (size_t i = 0; i < count; ++i) {
+      const MotionStep& s = steps_[first + i];
+      if (s.gripper) {
+        rbx1_gripper_req req{s.pulse_us, s.dwell_ms};
+        batch[i].type = RBX1_MSG_GRIPPER;
+        batch[i].len = rbx1_gripper_req_pack(&req, batch[i].payload);
+      } else {
+        rbx1_move_req req{};
+        for (int j = 0; j < RBX1_JOINTS; ++j) req.target[j] = s.target[j];
+        req.duration_ms = s.duration_ms;
+        batch[i].type = RBX1_MSG_MOVE;
+        batch[i].len = rbx1_move_req_pack(&req, batch[i].payload);
+      }
+    }
+    return batch;
+  }
+
+  // At-most-once after the link failed under a batch: once it is back, the firmware's counters say which of the
+  // unanswered entries it queued (the journal resolves them).
+  bool after_outage() {
+    if (!recover() || !read_status()) return false;
+    std::vector<JournalEvent> events;
+    JournalError error = journal_->outage(st_, events);
+    report(events);
+    return error ? fail(error) : true;
+  }
+
+  // Waits one poll period, reads STATUS and reconciles the journal with it.
+  bool poll() {
+    std::this_thread::sleep_for(std::chrono::milliseconds(motion_.options_.poll_ms));
+    return read_status() && reconcile();
+  }
+
+  bool reconcile() {
+    std::vector<JournalEvent> events;
+    JournalError error = journal_->reconcile(st_, events);
+    report(events);
+    return error ? fail(error) : true;
+  }
+
+  // An e-stop ends the run; a lost heartbeat (the outage outlived it: the firmware stopped and flushed its queue,
+  // the journal moved sent() back to the first entry that did not complete) is cleared and the run goes on
+  // (Again); any other fault ends it.
+  Next handle_faults() {
+    if (st_.state != RBX1_STATE_FAULT && !(st_.faults & RBX1_FAULTS_LATCHING)) return Next::On;
+    if (st_.faults & (RBX1_FAULT_ESTOP_INPUT | RBX1_FAULT_ESTOP_COMMAND))
+      return failed("estop", "e-stop: motion stopped at step " + std::to_string(done() + 1) + " (" +
+                                 step_name(done()) + ")");
+    if ((st_.faults & RBX1_FAULTS_LATCHING) == RBX1_FAULT_HEARTBEAT_LOST && st_.state != RBX1_STATE_STOPPING) {
+      hooks_.emit("heartbeat_lost", {{"completed", done()}, {"flushed", journal_->flushed()}});
+      if (motion_.clear_heartbeat_lost(hooks_, st_, res_.recovered, err_) < 0) return failed("fault", err_);
+      res_.last = st_;
+      if (!reconcile()) return Next::Failed;
+      res_.resent += int(journal_->resend_flushed());  // their targets are absolute: sending them again resumes
+      return Next::Again;
+    }
+    if (st_.state == RBX1_STATE_FAULT)
+      return failed("fault", "firmware fault " + fault_names(st_.faults).dump() + " at step " +
+                                 std::to_string(done() + 1));
+    return Next::On;
+  }
+
+  // Entries flushed with no fault: a STOP this job did not send.
+  bool check_flushed() {
+    if (!journal_->flushed() || st_.state == RBX1_STATE_STOPPING) return true;
+    return fail("stopped", "the firmware flushed " + std::to_string(journal_->flushed()) + " entries of this job at step " +
+                               std::to_string(done() + 1) + " without a fault (a STOP from elsewhere?)");
+  }
+
+  // The head of the queue has its planned time plus move_timeout_s to complete.
+  bool check_timeout() {
+    if (done() >= journal_->sent()) return true;
+    double allowed = planned_s(steps_[done()]) + motion_.options_.move_timeout_s;
+    if (std::chrono::duration<double>(Clock::now() - head_since_).count() <= allowed) return true;
+    return fail("timeout", "step " + std::to_string(done() + 1) + " (" + steps_[done()].name +
+                               ") did not complete within " + std::to_string(int(allowed)) + " s");
+  }
+
+  // The journal's events as the job's events; a completion or a new head restarts the head's clock.
+  void report(const std::vector<JournalEvent>& events) {
+    for (const JournalEvent& e : events) {
+      const MotionStep& s = steps_[e.step];
+      switch (e.kind) {
+        case JournalEvent::Sent:
+          hooks_.emit("sent", step_json(s, e.step));
+          if (hooks_.on_sent) hooks_.on_sent(e.step);
+          break;
+        case JournalEvent::StepDone: {
+          nlohmann::json j = step_json(s, e.step);
+          j["moves_done"] = st_.moves_done;
+          j["position"] = std::vector<int32_t>(st_.position, st_.position + RBX1_JOINTS);
+          hooks_.emit("step_done", j);
+          head_since_ = Clock::now();
           break;
         }
-        if (status != RBX1_OK)
-          return fail("rejected", "firmware refused step " + std::to_string(sent + 1) + " (" + s.name + "): " +
-                                      rbx1_status_name(status));
-        hooks.emit("sent", step_json(s, sent));
-        if (hooks.on_sent) hooks.on_sent(sent);
-        ++accepted;
-        ++sent;
+        case JournalEvent::Step:
+          hooks_.emit("step", step_json(s, e.step));
+          head_since_ = Clock::now();
+          break;
+        case JournalEvent::Outage:
+          hooks_.emit("journal", {{"step", e.step + 1}, {"name", s.name}, {"accepted_before_outage", e.accepted}});
+          break;
       }
-      if (refused) {
-        for (size_t j = k + 1; j < count; ++j)
-          if (batch[j].answered && batch[j].resp_len >= 1 && batch[j].resp[0] == RBX1_OK)
-            return fail("rejected", "firmware accepted step " + std::to_string(first + j + 1) + " after refusing step " +
-                                        std::to_string(first + k + 1) + "; the queue's order is lost");
-        break;
-      }
-      if (r < 0) {
-        if (!link_error(r)) return fail("link_error", link_.name() + ": request failed (" + std::to_string(r) + ")");
-        if (recover(hooks, err) < 0) return fail(hooks.aborted() ? hooks.abort_reason() : "link_down", err);
-        res.recovered++;
-        // At-most-once: the firmware's accepted counter says how many of the unanswered entries were queued;
-        // it runs them in order, so they are the first ones.
-        if (read_status() < 0) return res;
-        size_t queued = since(st.moves_accepted, base.moves_accepted);
-        size_t ran = queued >= accepted ? queued - accepted : count + 1;
-        bool fits = ran <= count - k;
-        for (size_t j = k; fits && j < count; ++j)
-          if (batch[j].answered && batch[j].resp_len >= 1 && (batch[j].resp[0] == RBX1_OK) != (j < k + ran))
-            fits = false;
-        if (!fits)
-          return fail("firmware_reset", "the firmware's counters (accepted " + std::to_string(queued) +
-                                            " since the job began) disagree with the " + std::to_string(accepted) +
-                                            " entries this job knows plus " + std::to_string(count - k) +
-                                            " unanswered; refusing to guess the arm's state");
-        for (size_t j = k; j < count && j <= k + ran; ++j) {
-          const MotionStep& s = steps[first + j];
-          bool took = j < k + ran;
-          spdlog::info("motion: step {} ({}) {} before the link went down", first + j + 1, s.name,
-                       took ? "was accepted" : "was not accepted");
-          hooks.emit("journal", {{"step", first + j + 1}, {"name", s.name}, {"accepted_before_outage", took}});
-          if (!took) break;
-          hooks.emit("sent", step_json(s, sent));
-          if (hooks.on_sent) hooks.on_sent(sent);
-          ++accepted;
-          ++sent;
-        }
-        if (reconcile() < 0) return res;
-        break;  // re-evaluate faults (heartbeat loss) below before sending more
-      }
-    }
-    if (announced < sent && announced == done) {
-      hooks.emit("step", step_json(steps[announced], announced));
-      ++announced;
-      head_since = Clock::now();
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(options_.poll_ms));
-    if (read_status() < 0) return res;
-    if (reconcile() < 0) return res;
-    if (st.state == RBX1_STATE_FAULT || (st.faults & RBX1_FAULTS_LATCHING)) {
-      if (st.faults & (RBX1_FAULT_ESTOP_INPUT | RBX1_FAULT_ESTOP_COMMAND))
-        return fail("estop", "e-stop: motion stopped at step " + std::to_string(done + 1) + " (" +
-                                 (done < n ? steps[done].name : "end") + ")");
-      if ((st.faults & RBX1_FAULTS_LATCHING) == RBX1_FAULT_HEARTBEAT_LOST && st.state != RBX1_STATE_STOPPING) {
-        // The outage outlived the firmware's heartbeat: it stopped and flushed its queue (reconcile() moved
-        // `sent` back to the first step that did not complete). Clear the fault and carry on.
-        hooks.emit("heartbeat_lost", {{"completed", done}, {"flushed", flushed}});
-        if (clear_heartbeat_lost(hooks, st, res.recovered, err) < 0) return fail("fault", err);
-        res.last = st;
-        if (reconcile() < 0) return res;
-        res.resent += int(flushed);  // their targets are absolute: sending them again resumes the job
-        flushed = 0;
-        continue;
-      }
-      if (st.state == RBX1_STATE_FAULT)
-        return fail("fault", "firmware fault " + fault_names(st.faults).dump() + " at step " + std::to_string(done + 1));
-    }
-    if (flushed && st.state != RBX1_STATE_STOPPING)  // flushed with no fault: a STOP this job did not send
-      return fail("stopped", "the firmware flushed " + std::to_string(flushed) + " entries of this job at step " +
-                                 std::to_string(done + 1) + " without a fault (a STOP from elsewhere?)");
-    if (done < sent) {
-      double allowed = planned_s(steps[done]) + options_.move_timeout_s;
-      if (std::chrono::duration<double>(Clock::now() - head_since).count() > allowed)
-        return fail("timeout", "step " + std::to_string(done + 1) + " (" + steps[done].name + ") did not complete within " +
-                                   std::to_string(int(allowed)) + " s");
     }
   }
-  res.ok = true;
-  return res;
+
+  Motion& motion_;
+  link::Link& link_;
+  const std::vector<MotionStep>& steps_;
+  const MotionHooks& hooks_;
+  MotionResult res_;
+  rbx1_status_resp st_{};
+  std::string err_;
+  bool have_last_ = false;
+  std::optional<MotionJournal> journal_;
+  Clock::time_point head_since_;
+};
+
+MotionResult Motion::run(const std::vector<MotionStep>& steps, const MotionHooks& hooks) {
+  return Run(*this, steps, hooks).go();
 }
 
 int Motion::clear_heartbeat_lost(const MotionHooks& hooks, rbx1_status_resp& st, int& recovered, std::string& error) {

@@ -56,6 +56,7 @@ class Motion {
   int recover(const MotionHooks& hooks, std::string& error);
 
  private:
+  class Run;  // one run(): its state and named steps (motion.cpp)
   // CLEAR_FAULT (and ENABLE when needed) after a heartbeat loss, surviving link errors; st is the STATUS after.
   int clear_heartbeat_lost(const MotionHooks& hooks, rbx1_status_resp& st, int& recovered, std::string& error);
 

@@ -8,6 +8,9 @@
 
 namespace rbx1::daemon {
 
+// The arm model's joints are the wire's joints, one for one.
+static_assert(arm::kJoints == RBX1_JOINTS, "host/arm kJoints differs from messages.json's joints");
+
 namespace {
 arm::Steps steps_of(const rbx1_status_resp& s) {
   arm::Steps out;

@@ -19,8 +19,23 @@ std::string iso_now() {
   return buf;
 }
 
-Reply::Reply(Sink sink, Command command, Presence presence)
-    : sink_(std::move(sink)), command_(command), presence_(std::move(presence)), start_(std::chrono::steady_clock::now()) {}
+namespace {
+std::atomic<uint64_t> next_request_id{1};
+}
+
+Reply::Reply(Sink sink, Command command, Presence presence, Backlog backlog)
+    : sink_(std::move(sink)),
+      command_(command),
+      presence_(std::move(presence)),
+      backlog_(std::move(backlog)),
+      id_(next_request_id++),
+      start_(std::chrono::steady_clock::now()) {}
+
+void Reply::publish_to(Bus& bus, nlohmann::json request) {
+  std::lock_guard lock(mutex_);
+  bus_ = &bus;
+  bus.publish(Topic::Events, {{"req", id_}, {"cmd", command_name(command_)}, {"request", std::move(request)}});
+}
 
 double Reply::elapsed_ms() const {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start_).count();
@@ -31,6 +46,13 @@ void Reply::write_line(const nlohmann::json& j, bool final) {
   std::string line = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
   if (!log_tag_.empty()) spdlog::info("{}: {}", log_tag_, line);
   if (sink_) sink_(line, final);
+  if (bus_) {
+    nlohmann::json e = j;
+    e["req"] = id_;
+    e["cmd"] = command_name(command_);
+    if (final) e["final"] = true;
+    bus_->publish(Topic::Events, std::move(e));
+  }
 }
 
 void Reply::event(const std::string& name, nlohmann::json fields) {
@@ -40,6 +62,11 @@ void Reply::event(const std::string& name, nlohmann::json fields) {
   if (fields.is_object())
     for (auto& [k, v] : fields.items()) j[k] = v;
   write_line(j, false);
+}
+
+void Reply::forward(const nlohmann::json& line) {
+  std::lock_guard lock(mutex_);
+  if (!finished_) write_line(line, false);
 }
 
 void Reply::result(nlohmann::json result) {
@@ -55,7 +82,7 @@ void Reply::error(const std::string& code, const std::string& message) {
 }
 
 std::optional<Command> submit_line(const Handler& handler, std::string_view line, Reply::Sink sink,
-                                   Reply::Presence presence) {
+                                   Reply::Presence presence, Reply::Backlog backlog) {
   Request request;
   Error err;
   if (!parse_request(line, request, err)) {
@@ -64,7 +91,7 @@ std::optional<Command> submit_line(const Handler& handler, std::string_view line
     return std::nullopt;
   }
   if (request.command != Command::Status) spdlog::info("control: request {}", request_json(request).dump());
-  handler(request, std::make_shared<Reply>(std::move(sink), request.command, std::move(presence)));
+  handler(request, std::make_shared<Reply>(std::move(sink), request.command, std::move(presence), std::move(backlog)));
   return request.command;
 }
 

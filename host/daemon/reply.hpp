@@ -15,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bus.hpp"
 #include "request.hpp"
 
 namespace rbx1::daemon {
@@ -30,9 +31,21 @@ class Reply {
   // Whether the client is still there (the jog's dead-man rule); null: a client that never goes (start button).
   using Presence = std::function<bool()>;
 
-  Reply(Sink sink, Command command, Presence presence = nullptr);
+  // How many bytes written to the sink its client has not taken yet (a subscriber's stream holds back when high);
+  // null: the sink never backs up (in-process clients).
+  using Backlog = std::function<size_t()>;
+
+  Reply(Sink sink, Command command, Presence presence = nullptr, Backlog backlog = nullptr);
+  // A number for this request, unique in the process: the bus's "req", the console log's "#N".
+  uint64_t id() const { return id_; }
+  // Also publish every line on bus's events topic, with "req", "cmd" and "final" (the daemon does this for every
+  // request but reads, so any subscriber sees every client's jobs). Call before the first line.
+  void publish_to(Bus& bus, nlohmann::json request);
+  size_t backlog() const { return backlog_ ? backlog_() : 0; }
   // An event line: {"ts": ISO-8601 UTC, "t_ms": ms since the request, "event": name, ...fields}.
   void event(const std::string& name, nlohmann::json fields = nlohmann::json::object());
+  // A line made elsewhere (a bus message), written as it is: not a final line.
+  void forward(const nlohmann::json& line);
   void result(nlohmann::json result);
   void error(const std::string& code, const std::string& message);
   bool finished() const { return finished_; }
@@ -49,6 +62,9 @@ class Reply {
   Sink sink_;
   Command command_;
   Presence presence_;
+  Backlog backlog_;
+  uint64_t id_;
+  Bus* bus_ = nullptr;
   std::chrono::steady_clock::time_point start_;
   std::mutex mutex_;
   std::atomic<bool> finished_{false};
@@ -69,7 +85,7 @@ using Handler = std::function<void(const Request&, std::shared_ptr<Reply>)>;
 // sink; a malformed line gets its error reply on sink at once and never reaches the handler. Returns the parsed
 // command, or nothing for a malformed line.
 std::optional<Command> submit_line(const Handler& handler, std::string_view line, Reply::Sink sink,
-                                   Reply::Presence presence = nullptr);
+                                   Reply::Presence presence = nullptr, Reply::Backlog backlog = nullptr);
 
 // An in-process client's view of one reply (the web console, tests): the reply's lines queued as they come.
 class ReplyQueue {

@@ -1,10 +1,12 @@
 // request.hpp - the control socket's request lines: parsing and validation into a typed Request, or an error reply.
+// What each command takes is declared in command_table.hpp.
 #pragma once
 #include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -15,9 +17,10 @@ inline constexpr size_t kMaxRequestLine = 4096;
 
 enum class Command {
   Status, Scan, Pick, Home, Estop, ClearFault, Shutdown,
-  // The operator's commands (operator_request.cpp parses their fields; host/daemon/README.md "Operator commands").
+  // The operator's commands (host/daemon/README.md "Operator commands").
   Jog, PoseSave, PlaceSave, Background, Teach, CalibrateWorkspace,
-  // The cell's jobs and their control (jobs_request.cpp parses their fields).
+  Subscribe,
+  // The cell's jobs and their control (sort_jobs.cpp; jobs_request.cpp checks the recipe).
   Sort, Clear, RecipeSave, History, Pause, Resume, Cancel,
 };
 
@@ -35,6 +38,7 @@ struct Request {
   int frames = 0;      // background: frames to average (0 = [operator] background_frames)
   bool mirror_ok = false;  // teach
   std::string action;  // calibrate_workspace: start, status, record, fit, save, cancel
+  std::vector<std::string> topics;  // subscribe: bus topics (empty: all)
   // sort: a saved recipe's name (a string) or the recipe itself (class -> place); recipe_save: name and recipe.
   nlohmann::json recipe;
   int max_picks = 0;   // sort, clear: 0 = no limit
@@ -56,15 +60,6 @@ const char* command_name(Command c);
 bool parse_request(std::string_view line, Request& out, Error& error);
 // The request as a JSON line (what the client sends).
 nlohmann::json request_json(const Request& r);
-
-// The operator commands' fields (operator_request.cpp): j is the request object, out.command already set.
-bool is_operator_command(Command c);
-bool parse_operator_fields(const nlohmann::json& j, const std::string& cmd, Request& out, Error& error);
-void operator_fields_json(const Request& r, nlohmann::json& j);
-// The cell jobs' fields (jobs_request.cpp).
-bool is_jobs_command(Command c);
-bool parse_jobs_fields(const nlohmann::json& j, const std::string& cmd, Request& out, Error& error);
-void jobs_fields_json(const Request& r, nlohmann::json& j);
 
 // Reply lines.
 nlohmann::json error_reply(const Error& e);

@@ -105,6 +105,12 @@ struct Connection {
     return !(::poll(&p, 1, 0) > 0 && (p.revents & (POLLRDHUP | POLLHUP | POLLERR)));
   }
 
+  // Reply bytes the peer has not taken yet.
+  size_t backlog() {
+    std::lock_guard lock(mu);
+    return out.size();
+  }
+
   void close() {
     std::lock_guard lock(mu);
     if (fd >= 0) ::close(fd);
@@ -133,7 +139,8 @@ void submit(Client& c, const Handler& handler, const std::string& line) {
     std::lock_guard lock(c.conn->mu);
     ++c.conn->open_replies;
   }
-  submit_line(handler, line, sink_for(c.conn), [conn = c.conn] { return conn->present(); });
+  submit_line(handler, line, sink_for(c.conn), [conn = c.conn] { return conn->present(); },
+              [conn = c.conn] { return conn->backlog(); });
 }
 
 // Runs every request but estop on its own thread: the server thread only moves bytes and answers e-stops, so it is
@@ -178,7 +185,8 @@ class Dispatcher {
         item = std::move(items_.front());
         items_.pop_front();
       }
-      submit_line(handler_, item.line, sink_for(item.conn), [conn = item.conn] { return conn->present(); });
+      submit_line(handler_, item.line, sink_for(item.conn), [conn = item.conn] { return conn->present(); },
+                  [conn = item.conn] { return conn->backlog(); });
       bool resume;
       {
         std::lock_guard lock(item.conn->mu);

@@ -69,7 +69,7 @@ bool StateDir::apply(Config& config, std::string& error) const {
       if (ok) scan[i] = a[i].get<double>();
     }
     if (!ok) {
-      error = path(kPosesFile) + ": \"scan\" must be 6 joint angles in degrees";
+      error = path(kPosesFile) + ": \"scan\" must be " + std::to_string(arm::kJoints) + " joint angles in degrees";
       return false;
     }
     std::string why;

@@ -196,7 +196,7 @@ uint8_t FakePeer::execute(const rbx1_frame& f, uint8_t* resp) {
       h.fw_major = 0;
       h.fw_minor = 9;
       h.fw_patch = 1;
-      h.joints = 6;
+      h.joints = RBX1_JOINTS;
       h.queue_size = 8;
       h.capabilities = 0x10;
       h.last_seq = last_seq;
@@ -226,7 +226,7 @@ uint8_t FakePeer::execute(const rbx1_frame& f, uint8_t* resp) {
     }
     case RBX1_MSG_SET_POSITION:
     case RBX1_MSG_HOME:
-      homed_ = 0x3F;
+      homed_ = RBX1_ALL_JOINTS_MASK;
       resp[0] = RBX1_OK;
       return 1;
     case RBX1_MSG_ENABLE:

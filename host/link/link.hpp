@@ -1,12 +1,12 @@
 // link.hpp - the host side of the RBX1 link: requests one at a time or streamed with a window in flight over a
 // serial port, e-stop from any thread.
 #pragma once
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cerrno>
 #include <cstdint>
-#include <deque>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -14,6 +14,7 @@
 
 #include "config.hpp"
 #include "rbx1_proto.h"
+#include "window_sender.hpp"
 
 namespace rbx1::link {
 
@@ -141,20 +142,10 @@ class Link {
   uint8_t next_seq() const;
 
  private:
-  struct Waiter {  // one request in flight awaiting its answer
+  struct Waiter {  // a single request (or the e-stop) in flight awaiting its answer
     uint8_t seq = 0, type = 0;
     bool done = false, nak = false;
     uint8_t nak_reason = 0;
-    // Streams only: each copy's place in the order of the copies written, answers and NAKs naming it, and whether
-    // one showed its latest copy lost (Link::attribute).
-    std::vector<uint32_t> txs;
-    uint32_t events = 0;
-    bool resend = false;
-    bool held = false;  // the firmware holds it ahead of a gap (NAK HELD): not lost, not resent until a timeout
-    // Sent again because a held request's answer showed its answer lost: the copy that resend wrote. The other
-    // answers of the same release show nothing newer, so they do not send that copy again.
-    bool release_resend = false;
-    uint32_t release_copy = 0;
     uint8_t len = 0;
     uint8_t payload[RBX1_MAX_PAYLOAD];
   };
@@ -164,8 +155,6 @@ class Link {
   void detach();                             // stops the reader thread and closes the fd
   void reader_loop(int fd, int wake_fd);
   static void on_frame(void* ctx, const rbx1_frame* frame);
-  void attribute(Waiter* w, bool refused);
-  void attribute_answer(Waiter* w);
   static void on_reject(void* ctx, uint8_t status, uint8_t seq, uint8_t has_seq);
   void port_gone(int err);
   int down_error() const { return gone_error_ ? -gone_error_ : -ENOTCONN; }  // under state_mu_
@@ -173,6 +162,11 @@ class Link {
   int transact(Waiter& w, bool estop, const uint8_t* frame, size_t n, uint8_t* resp, uint8_t& resp_len);
   int request_locked(uint8_t type, const uint8_t* payload, uint8_t len, uint8_t* resp, uint8_t& resp_len);
   int resync_locked();
+  int run_stream(WindowSender& sender, const std::vector<std::array<uint8_t, RBX1_MAX_FRAME>>& frames,
+                 const std::vector<uint8_t>& sizes);
+  int write_stream(const std::vector<SenderWrite>& writes, const std::vector<std::array<uint8_t, RBX1_MAX_FRAME>>& frames,
+                   const std::vector<uint8_t>& sizes, std::unique_lock<std::mutex>& lock);
+  void count_stream(const WindowSender& sender, SenderCounters& counted);  // under state_mu_
   template <typename Resp>
   int typed(uint8_t type, const uint8_t* payload, uint8_t len, Resp& out,
             uint8_t (*unpack)(Resp*, const uint8_t*, uint8_t));
@@ -192,12 +186,8 @@ class Link {
   int gone_error_ = 0;     // the errno that took the port down (under state_mu_)
   uint8_t next_seq_ = 0;   // under state_mu_
   std::atomic<bool> resync_{false};  // a HELLO before the next request
-  std::vector<Waiter*> waiting_;     // the requests in flight (under state_mu_)
-  // stream(): (SEQ, copy number) of the probes written whose NAK has not come, oldest first (under state_mu_)
-  std::deque<std::pair<uint8_t, uint32_t>> probes_;
-  // stream(): the latest copy an answer or NAK was about; the copies written after it are still on the line
-  // (PROTOCOL.md "Pacing"; under state_mu_)
-  uint32_t seen_tx_ = 0;
+  std::vector<Waiter*> waiting_;     // the single request in flight (under state_mu_)
+  WindowSender* stream_ = nullptr;   // the stream in progress: told of every frame first (under state_mu_)
   Waiter* estop_waiting_ = nullptr;  // the outstanding e-stop (under state_mu_)
   rbx1_decoder decoder_;   // reader thread only
   std::vector<uint8_t> recent_;            // reader thread only: bytes received during the handshake

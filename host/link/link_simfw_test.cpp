@@ -81,8 +81,8 @@ class SimFw {
 
 // Homes by declaration, enables, sends n small moves (retrying QUEUE_FULL, which executes nothing), and waits
 // for moves_done to reach n. Returns the targets sent.
-std::vector<std::array<int32_t, 6>> run_moves(Link& link, int n) {
-  std::vector<std::array<int32_t, 6>> sent;
+std::vector<std::array<int32_t, RBX1_JOINTS>> run_moves(Link& link, int n) {
+  std::vector<std::array<int32_t, RBX1_JOINTS>> sent;
   int32_t zero[RBX1_JOINTS] = {0, 0, 0, 0, 0, 0};
   rbx1_set_position_resp sp{};
   EXPECT_EQ(link.set_position(zero, sp), 0);
@@ -106,7 +106,7 @@ std::vector<std::array<int32_t, 6>> run_moves(Link& link, int n) {
       EXPECT_EQ(r.status, RBX1_OK) << rbx1_status_name(r.status);
       break;
     }
-    std::array<int32_t, 6> t;
+    std::array<int32_t, RBX1_JOINTS> t;
     std::copy(std::begin(m.target), std::end(m.target), t.begin());
     sent.push_back(t);
   }
@@ -131,14 +131,14 @@ std::vector<std::string> log_lines(const std::string& file) {
   return lines;
 }
 
-std::string target_text(const std::array<int32_t, 6>& t) {
+std::string target_text(const std::array<int32_t, RBX1_JOINTS>& t) {
   std::string s = "\"target\":[";
-  for (int j = 0; j < 6; ++j) s += (j ? "," : "") + std::to_string(t[j]);
+  for (int j = 0; j < RBX1_JOINTS; ++j) s += (j ? "," : "") + std::to_string(t[j]);
   return s + "]";
 }
 
 // Every move sent is in the firmware's --log-moves file, once, in the order sent: nothing lost, nothing run twice.
-void expect_logged_once_in_order(const std::string& log, const std::vector<std::array<int32_t, 6>>& sent) {
+void expect_logged_once_in_order(const std::string& log, const std::vector<std::array<int32_t, RBX1_JOINTS>>& sent) {
   auto lines = log_lines(log);
   ASSERT_EQ(lines.size(), sent.size());
   for (size_t i = 0; i < sent.size(); ++i) EXPECT_NE(lines[i].find(target_text(sent[i])), std::string::npos) << i;
@@ -224,7 +224,7 @@ TEST(LinkSimFw, WindowedStreamsUnderCorruptionLoseAndRepeatNothing) {
   rbx1_enable_resp en{};
   ASSERT_EQ(link.enable(true, en), 0);
   const int n = 120;
-  std::vector<std::array<int32_t, 6>> sent;
+  std::vector<std::array<int32_t, RBX1_JOINTS>> sent;
   auto t0 = steady_clock::now();
   while (int(sent.size()) < n && steady_clock::now() - t0 < seconds(60)) {
     rbx1_status_resp s{};
@@ -244,7 +244,7 @@ TEST(LinkSimFw, WindowedStreamsUnderCorruptionLoseAndRepeatNothing) {
     ASSERT_EQ(link.move_stream(reqs, out, answered), 0);
     for (int i = 0; i < batch; ++i) {
       ASSERT_EQ(out[i].status, RBX1_OK) << rbx1_status_name(out[i].status);
-      std::array<int32_t, 6> t;
+      std::array<int32_t, RBX1_JOINTS> t;
       std::copy(std::begin(reqs[i].target), std::end(reqs[i].target), t.begin());
       sent.push_back(t);
     }

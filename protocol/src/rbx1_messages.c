@@ -82,7 +82,7 @@ uint8_t rbx1_status_resp_pack(const rbx1_status_resp *m, uint8_t *payload) {
   put_u8(payload + 7, m->queue_free);
   put_u16(payload + 8, m->moves_done);
   put_u16(payload + 10, m->gripper_us);
-  for (i = 0; i < 6; i++) put_i32(payload + 12 + 4 * i, m->position[i]);
+  for (i = 0; i < RBX1_JOINTS; i++) put_i32(payload + 12 + 4 * i, m->position[i]);
   put_u16(payload + 36, m->moves_accepted);
   put_u16(payload + 38, m->moves_flushed);
   return RBX1_STATUS_RESP_LEN;
@@ -100,7 +100,7 @@ uint8_t rbx1_status_resp_unpack(rbx1_status_resp *m, const uint8_t *payload, uin
   m->queue_free = get_u8(payload + 7);
   m->moves_done = get_u16(payload + 8);
   m->gripper_us = get_u16(payload + 10);
-  for (i = 0; i < 6; i++) m->position[i] = get_i32(payload + 12 + 4 * i);
+  for (i = 0; i < RBX1_JOINTS; i++) m->position[i] = get_i32(payload + 12 + 4 * i);
   m->moves_accepted = get_u16(payload + 36);
   m->moves_flushed = get_u16(payload + 38);
   return RBX1_OK;
@@ -119,7 +119,7 @@ uint8_t rbx1_heartbeat_resp_unpack(rbx1_heartbeat_resp *m, const uint8_t *payloa
 
 uint8_t rbx1_move_req_pack(const rbx1_move_req *m, uint8_t *payload) {
   uint8_t i;
-  for (i = 0; i < 6; i++) put_i32(payload + 0 + 4 * i, m->target[i]);
+  for (i = 0; i < RBX1_JOINTS; i++) put_i32(payload + 0 + 4 * i, m->target[i]);
   put_u16(payload + 24, m->duration_ms);
   return RBX1_MOVE_REQ_LEN;
 }
@@ -127,7 +127,7 @@ uint8_t rbx1_move_req_pack(const rbx1_move_req *m, uint8_t *payload) {
 uint8_t rbx1_move_req_unpack(rbx1_move_req *m, const uint8_t *payload, uint8_t len) {
   uint8_t i;
   if (len != RBX1_MOVE_REQ_LEN) return RBX1_BAD_LENGTH;
-  for (i = 0; i < 6; i++) m->target[i] = get_i32(payload + 0 + 4 * i);
+  for (i = 0; i < RBX1_JOINTS; i++) m->target[i] = get_i32(payload + 0 + 4 * i);
   m->duration_ms = get_u16(payload + 24);
   return RBX1_OK;
 }
@@ -250,14 +250,14 @@ uint8_t rbx1_enable_resp_unpack(rbx1_enable_resp *m, const uint8_t *payload, uin
 
 uint8_t rbx1_set_position_req_pack(const rbx1_set_position_req *m, uint8_t *payload) {
   uint8_t i;
-  for (i = 0; i < 6; i++) put_i32(payload + 0 + 4 * i, m->position[i]);
+  for (i = 0; i < RBX1_JOINTS; i++) put_i32(payload + 0 + 4 * i, m->position[i]);
   return RBX1_SET_POSITION_REQ_LEN;
 }
 
 uint8_t rbx1_set_position_req_unpack(rbx1_set_position_req *m, const uint8_t *payload, uint8_t len) {
   uint8_t i;
   if (len != RBX1_SET_POSITION_REQ_LEN) return RBX1_BAD_LENGTH;
-  for (i = 0; i < 6; i++) m->position[i] = get_i32(payload + 0 + 4 * i);
+  for (i = 0; i < RBX1_JOINTS; i++) m->position[i] = get_i32(payload + 0 + 4 * i);
   return RBX1_OK;
 }
 

@@ -11,6 +11,10 @@ extern "C" {
 
 #define RBX1_MESSAGES_VERSION 5
 
+/* The joint count (the length of every per-joint array) and the mask of all joints (HOME, STATUS.homed). */
+#define RBX1_JOINTS 6
+#define RBX1_ALL_JOINTS_MASK ((uint8_t)((1u << RBX1_JOINTS) - 1u))
+
 /* Message types (a response is the request type | 0x80). */
 enum rbx1_msg_type {
   RBX1_MSG_HELLO = 0x01,
@@ -105,7 +109,7 @@ enum rbx1_key {
 
 typedef struct {
   uint8_t key;
-  uint8_t is_global; /* 1: joint must be RBX1_GLOBAL_JOINT; 0: joint 0..5 */
+  uint8_t is_global; /* 1: joint must be RBX1_GLOBAL_JOINT; 0: joint 0..RBX1_JOINTS-1 */
   int32_t min;
   int32_t max;
   int32_t default_value;
@@ -173,7 +177,7 @@ typedef struct {
   uint8_t queue_free;
   uint16_t moves_done;
   uint16_t gripper_us;
-  int32_t position[6];
+  int32_t position[RBX1_JOINTS];
   uint16_t moves_accepted;
   uint16_t moves_flushed;
 } rbx1_status_resp;
@@ -181,7 +185,7 @@ typedef struct {
   uint8_t status;
 } rbx1_heartbeat_resp;
 typedef struct {
-  int32_t target[6];
+  int32_t target[RBX1_JOINTS];
   uint16_t duration_ms;
 } rbx1_move_req;
 typedef struct {
@@ -218,7 +222,7 @@ typedef struct {
   uint8_t status;
 } rbx1_enable_resp;
 typedef struct {
-  int32_t position[6];
+  int32_t position[RBX1_JOINTS];
 } rbx1_set_position_req;
 typedef struct {
   uint8_t status;

@@ -16,7 +16,6 @@ extern "C" {
 #define RBX1_FRAME_OVERHEAD 10 /* SYNC LEN SEQ TYPE, 4 CRC bytes, 2 parity bytes */
 #define RBX1_FEC_BYTES 2
 #define RBX1_MAX_FRAME (RBX1_MAX_PAYLOAD + RBX1_FRAME_OVERHEAD)
-#define RBX1_JOINTS 6
 #define RBX1_RESPONSE(type) ((uint8_t)((type) | 0x80u))
 
 /* Message ids, status codes, states, bits and config keys: generated from messages.json. */
@@ -70,8 +69,8 @@ void rbx1_decoder_init(rbx1_decoder *d, rbx1_on_frame on_frame, rbx1_on_reject o
 /* Feeds received bytes; callbacks run from inside this call, possibly several times. A frame whose CRC holds is
  * delivered at its last CRC byte (its 2 parity bytes are skipped when they come); one whose CRC fails is read again
  * with its parity (one byte corrected), then with the payload length its TYPE implies in place of LEN (a damaged
- * LEN). The byte right after a delivered frame starts a candidate whatever its value (a damaged SYNC); such a
- * candidate is dropped silently if no reading holds. A rejection resumes the hunt at the byte after the rejected
+ * LEN). The byte right after a delivered frame starts a candidate whatever its value, however late (a damaged
+ * SYNC); such a candidate is dropped silently if no reading holds, unless that byte is a real SYNC (then rejected). A rejection resumes the hunt at the byte after the rejected
  * SYNC; it is decided once the TYPE byte is in, so has_seq is 1 for every rejection this decoder reports. Work is bounded: each rejection discards at least one
  * byte, and costs at most three readings (a CRC each, and two syndromes over 67 bytes). Callbacks may call
  * rbx1_decoder_reset but must not feed the same decoder. */

@@ -292,6 +292,13 @@ def stream_vectors():
     add("garbage_after_frame_silent", "a STATUS, a stray byte, then a MOVE: the stray byte starts a candidate (LEN "
         "read as 0xA5, TYPE as 0x1A: no fixed length), dropped without a rejection; the MOVE is found by the rescan",
         status + b"\x42" + move, [ev_frame(status), ev_frame(move)])
+    bad9 = damage(status9, {4: 0x01, 6: 0x01})  # two CRC bytes: one more than the parity corrects
+    add("corrupt_frame_after_frame_rejected", "a STATUS, then at once a STATUS (SEQ 9) with two CRC bytes damaged "
+        "whose SYNC is intact: the byte after a frame is 0xA5, a real SYNC, so the corrupt frame is rejected BAD_CRC "
+        "like any (the firmware NAKs it)", status + bad9, [ev_frame(status), ev_reject(Status.BAD_CRC, 9)])
+    add("corrupt_frame_after_frame_damaged_sync_silent", "the same with its SYNC damaged too (0x5A): the candidate "
+        "the byte after a frame starts holds no reading and does not start with 0xA5, so it is dropped without a "
+        "rejection", status + damage(bad9, {0: 0xFF}), [ev_frame(status)])
 
     for s in S:
         d = frame.Decoder()

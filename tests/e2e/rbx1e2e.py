@@ -1,10 +1,10 @@
-"""rbx1e2e.py - end-to-end test kit: start rbx1-simfw / rbx1-avrsim and rbx1d, talk to the control socket,
-read the firmware's move log, and compute the arm's forward kinematics independently of the C++ code."""
+"""rbx1e2e.py - end-to-end test kit: start rbx1-simfw / rbx1-avrsim and rbx1d, talk to the control socket (through
+the rbx1 client library, host/python), read the firmware's move log, and compute the arm's forward kinematics
+independently of the C++ code."""
 import json
 import math
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -17,6 +17,8 @@ DATA = ROOT / "data"
 # The bundled demo data (scene+calibration engineer's); RBX1_E2E_DEMO points the tests at another such folder.
 DEMO = Path(os.environ.get("RBX1_E2E_DEMO", DATA / "demo"))
 sys.path.insert(0, str(ROOT / "protocol" / "python"))
+sys.path.insert(0, str(ROOT / "host" / "python"))
+import rbx1  # noqa: E402  the client library users script with: the tests speak to rbx1d through it
 
 
 def need(path):
@@ -219,29 +221,15 @@ class Daemon:
 
 
 def request(sock_path, req, timeout=120, on_event=None):
-    """Sends one request (dict or raw line), returns (events, final line)."""
-    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    s.settimeout(timeout)
-    s.connect(sock_path)
-    line = req if isinstance(req, (str, bytes)) else json.dumps(req)
-    s.sendall((line.encode() if isinstance(line, str) else line) + b"\n")
-    events, buf = [], b""
+    """Sends one request (dict or raw line), returns (events, final line); timeout: the longest wait for a line."""
+    job = rbx1.Arm(socket=sock_path).send(req, timeout=timeout, on_event=on_event)
     try:
-        while True:
-            chunk = s.recv(65536)
-            if not chunk:
-                raise AssertionError(f"connection closed before the final line; events: {events}")
-            buf += chunk
-            while b"\n" in buf:
-                raw, buf = buf.split(b"\n", 1)
-                msg = json.loads(raw)
-                if "result" in msg or "error" in msg:
-                    return events, msg
-                events.append(msg)
-                if on_event:
-                    on_event(msg)
-    finally:
-        s.close()
+        final = job.wait()
+    except rbx1.Disconnected as e:
+        if "closed the connection" in e.message:
+            raise AssertionError(f"connection closed before the final line; events: {job.events}") from e
+        raise  # could not connect: an OSError (ConnectionError), as before
+    return job.events, final
 
 
 # ---- kinematics (independent of host/arm: the chain of host/arm/kinematics.hpp, written out again) -----------
@@ -366,10 +354,10 @@ def configure_fast_firmware(port):
     """Raises the firmware's per-joint MAX_SPEED and ACCEL (EEPROM config, protocol CONFIG_SET) so that the test
     arm can move at FAST_DEG_S; the daemon then plans at that speed."""
     from rbx1proto.link import Link
-    from rbx1proto.messages import Key, MsgType
+    from rbx1proto.messages import JOINTS, Key, MsgType
     with Link(port) as link:
         link.hello()
-        for j in range(6):
+        for j in range(JOINTS):
             for key, value in ((Key.MAX_SPEED, FAST_MAX_SPEED), (Key.ACCEL, FAST_ACCEL)):
                 r = link.request(MsgType.CONFIG_SET, joint=j, key=key, value=value)
                 assert r["status"] == 0, (j, key, r)

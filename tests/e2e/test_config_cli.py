@@ -1,7 +1,6 @@
 """test_config_cli.py - rbx1d --check-config, config errors naming keys, malformed control requests, CLI exit codes."""
 import json
 import os
-import socket
 import subprocess
 
 import rbx1e2e as e2e
@@ -82,18 +81,8 @@ def test_unreadable_config_exits_2(tmp_path):
 
 
 def raw(sock_path, data):
-    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    s.settimeout(10)
-    s.connect(sock_path)
-    s.sendall(data)
-    buf = b""
-    while b"\n" not in buf:
-        chunk = s.recv(4096)
-        if not chunk:
-            break
-        buf += chunk
-    s.close()
-    return json.loads(buf.split(b"\n")[0])
+    """The reply to bytes written as they are (the client's raw-line path: no JSON encoding of ours)."""
+    return e2e.rbx1.Arm(socket=sock_path).send(data, timeout=10).wait()
 
 
 def test_malformed_requests_get_errors_and_the_daemon_lives(sim, daemon_factory):

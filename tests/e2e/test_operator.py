@@ -4,7 +4,6 @@ client goes away; the scan pose, a place, the background and a taught object sav
 in force after a restart."""
 import json
 import math
-import socket
 import subprocess
 import time
 
@@ -86,14 +85,10 @@ def test_jog_stops_when_the_client_goes_away(sim, daemon_factory):
     cfg["arm"]["speeds"]["joint_speed_deg_s"] = 5.0  # 10 deg take 2 s: time to hang up mid-move
     d = daemon_factory(sim.port, cfg)
     start = position(d)
-    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    s.connect(d.socket)
-    s.sendall(b'{"cmd": "jog", "joint": 1, "deg": 10}\n')
-    buf = b""
-    while b'"event":"step"' not in buf.replace(b" ", b""):
-        buf += s.recv(4096)
+    job = e2e.rbx1.Arm(socket=d.socket).start("jog", joint=1, deg=10, timeout=30)
+    next(e for e in job if e["event"] == "step")
     time.sleep(0.3)
-    s.close()  # the operator's client died mid-jog
+    job.close()  # the operator's client died mid-jog
     deadline = time.monotonic() + 10
     while True:
         _, st = d.request({"cmd": "status"})

@@ -80,6 +80,10 @@ def test_sort_then_clear_run_to_their_end_and_the_world_agrees(tmp_path):
         cell.stop()
 
 
+class Killing(Exception):
+    """Raised from the event callback to stop reading: the daemon is about to be killed."""
+
+
 def test_history_survives_a_kill_mid_job(tmp_path):
     cell = cell_for(tmp_path, seed=23, objects=3)
     try:
@@ -99,9 +103,9 @@ def test_history_survives_a_kill_mid_job(tmp_path):
             elif name == "resumed":
                 control.append(name)
             elif name == "planned" and "resumed" in control:
-                raise StopIteration
+                raise Killing
 
-        with pytest.raises(StopIteration):
+        with pytest.raises(Killing):
             cell.daemon.request({"cmd": "clear", "place": "tray"}, timeout=300, on_event=on_event)
         assert [c if isinstance(c, str) else list(c) for c in control] == [["result"], ["result"], "resumed"], control
         time.sleep(0.3)  # into the move

@@ -119,7 +119,7 @@ void Board::drive(PortPin p, uint8_t level, bool force) {
 }
 
 void Board::drive_inputs(bool force) {
-  for (int j = 0; j < 6; j++) drive(kJoints[j].limit, limits_[j] ? kLimitActive : !kLimitActive, force);
+  for (int j = 0; j < RBX1_JOINTS; j++) drive(kJoints[j].limit, limits_[j] ? kLimitActive : !kLimitActive, force);
   drive(kEstop, estop_ ? kEstopActive : !kEstopActive, force);
 }
 

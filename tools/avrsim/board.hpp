@@ -58,7 +58,7 @@ class Board {
   std::string pty_name_;
   std::string eeprom_file_;
   bool estop_ = false;
-  std::array<bool, 6> limits_{};
+  std::array<bool, RBX1_JOINTS> limits_{};
 };
 
 }  // namespace rbx1::avrsim

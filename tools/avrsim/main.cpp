@@ -287,7 +287,7 @@ int main(int argc, char** argv) {
           estop.after_step_irq = -1;
           estop.set(a == 1);
         }
-      } else if (cmd == "limit" && (in >> a >> b) && a >= 1 && a <= 6 && (b == 0 || b == 1)) {
+      } else if (cmd == "limit" && (in >> a >> b) && a >= 1 && a <= RBX1_JOINTS && (b == 0 || b == 1)) {
         board.set_limit(a - 1, b == 1);
       } else if (cmd == "reset") {
         board.reset();

@@ -5,6 +5,7 @@
 #include <cstdint>
 
 #include "pins.h"  // firmware/rbx1/src/pins.h
+#include "rbx1_messages.h"  // RBX1_JOINTS
 
 namespace rbx1::avrsim {
 
@@ -22,9 +23,9 @@ struct JointPins {
     {RBX1_J##n##_STEP_PORT, RBX1_J##n##_STEP_BIT}, {RBX1_J##n##_DIR_PORT, RBX1_J##n##_DIR_BIT},         \
         {RBX1_J##n##_EN_PORT, RBX1_J##n##_EN_BIT}, {RBX1_J##n##_LIMIT_PORT, RBX1_J##n##_LIMIT_BIT}      \
   }
-inline constexpr std::array<JointPins, 6> kJoints = {RBX1_AVRSIM_JOINT(1), RBX1_AVRSIM_JOINT(2),
-                                                     RBX1_AVRSIM_JOINT(3), RBX1_AVRSIM_JOINT(4),
-                                                     RBX1_AVRSIM_JOINT(5), RBX1_AVRSIM_JOINT(6)};
+inline constexpr std::array<JointPins, RBX1_JOINTS> kJoints = {RBX1_AVRSIM_JOINT(1), RBX1_AVRSIM_JOINT(2),
+                                                               RBX1_AVRSIM_JOINT(3), RBX1_AVRSIM_JOINT(4),
+                                                               RBX1_AVRSIM_JOINT(5), RBX1_AVRSIM_JOINT(6)};
 #undef RBX1_AVRSIM_JOINT
 inline constexpr PortPin kEstop = {RBX1_ESTOP_PORT, RBX1_ESTOP_BIT};
 

@@ -33,7 +33,7 @@ avr_irq_t* pin_irq(avr_t* avr, PortPin p) {
 void Probes::attach(avr_t* avr, int isr_vector) {
   avr_ = avr;
   forced_vector_ = isr_vector;
-  for (int j = 0; j < 6; j++) {
+  for (int j = 0; j < RBX1_JOINTS; j++) {
     // Hooks live as long as the process; simavr only keeps the pointer.
     auto* step = new Hook{this, j};
     avr_irq_register_notify(pin_irq(avr, kJoints[j].step), &Probes::on_step, step);

@@ -8,6 +8,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "rbx1_messages.h"  // RBX1_JOINTS
+
 extern "C" {
 #include "sim_avr.h"
 }
@@ -54,10 +56,10 @@ class Probes {
 
   avr_t* avr_ = nullptr;
   int forced_vector_ = -1;
-  std::array<int64_t, 6> steps_{};
-  std::array<uint64_t, 6> pulses_{};
-  std::array<uint8_t, 6> step_level_{};  // reset level of a port pin: 0
-  std::array<uint8_t, 6> enable_level_{};
+  std::array<int64_t, RBX1_JOINTS> steps_{};
+  std::array<uint64_t, RBX1_JOINTS> pulses_{};
+  std::array<uint8_t, RBX1_JOINTS> step_level_{};  // reset level of a port pin: 0
+  std::array<uint8_t, RBX1_JOINTS> enable_level_{};
 
   struct Running {
     uint8_t vector;

@@ -16,7 +16,7 @@ import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.realpath(__file__)))
 import timing  # noqa: E402
-from timing import HZ, Board, MsgType, State, Status  # noqa: E402
+from timing import HZ, JOINTS, Board, MsgType, State, Status  # noqa: E402
 
 SPEED_W = 0.02   # s: speed over windows of this length (tolerance: one step per window)
 ACCEL_W = 0.1    # s: acceleration as the second difference of positions over windows of this length (4 steps / W^2)
@@ -50,9 +50,9 @@ def junction_speed(a, b, c, vmax=VMAX, acc=ACCEL):
     da = [y - x for x, y in zip(a, b)]
     db = [y - x for x, y in zip(b, c)]
     na, nb = max(map(abs, da)), max(map(abs, db))
-    v = min([vmax[i] * na / abs(da[i]) for i in range(6) if da[i]] +
-            [vmax[i] * nb / abs(db[i]) for i in range(6) if db[i]])
-    for i in range(6):
+    v = min([vmax[i] * na / abs(da[i]) for i in range(JOINTS) if da[i]] +
+            [vmax[i] * nb / abs(db[i]) for i in range(JOINTS) if db[i]])
+    for i in range(JOINTS):
         d = abs(da[i] / na - db[i] / nb)
         if d > 0:
             v = min(v, math.sqrt(2 * acc[i] * JUNCTION_LAG_STEPS) / d, math.sqrt(acc[i] * min(na, nb) / d))
@@ -74,11 +74,11 @@ def run(trace_path, targets, duration_ms=0, vmax=VMAX, acc=ACCEL, elf=timing.ELF
         try:
             b.queue = b.req(MsgType.HELLO, proto_version=timing.PROTO_VERSION)["queue_size"]
             b.req(MsgType.CONFIG_SET, joint=0xFF, key=timing.Key.HEARTBEAT_MS, value=60000)
-            for j in range(6):
+            for j in range(JOINTS):
                 b.req(MsgType.CONFIG_SET, joint=j, key=timing.Key.MAX_SPEED, value=vmax[j])
                 b.req(MsgType.CONFIG_SET, joint=j, key=timing.Key.ACCEL, value=acc[j])
             b.req(MsgType.ENABLE, enable=1)
-            b.req(MsgType.SET_POSITION, position=[0] * 6)
+            b.req(MsgType.SET_POSITION, position=[0] * JOINTS)
             before = b.req(MsgType.STATUS)
             k = 0
             while k < len(targets):
@@ -147,9 +147,9 @@ def answer_latency(trace_path):
 def analyse(trace_path, ticks=None):
     """Per joint: STEP rise cycles with the direction (+1/-1), the shortest pulse, the shortest DIR-to-STEP setup.
     ticks (a list) gets the cycles of every profile tick (entry to exit, the step interrupts it let in included)."""
-    steps = [[] for _ in range(6)]
-    level, dirs, rise = [0] * 6, [0] * 6, [None] * 6
-    dir_at = [None] * 6
+    steps = [[] for _ in range(JOINTS)]
+    level, dirs, rise = [0] * JOINTS, [0] * JOINTS, [None] * JOINTS
+    dir_at = [None] * JOINTS
     width = setup = None
     stack = []
     with open(trace_path) as f:
@@ -188,9 +188,9 @@ def analyse(trace_path, ticks=None):
 def limits(steps, t0, t1):
     """Largest speed and acceleration per joint (steps/s, steps/s^2) from the positions at 1 ms steps."""
     ms = HZ // 1000
-    speed, accel = [0.0] * 6, [0.0] * 6
+    speed, accel = [0.0] * JOINTS, [0.0] * JOINTS
     ks, ka = round(SPEED_W * 1000), round(ACCEL_W * 1000)
-    for j in range(6):
+    for j in range(JOINTS):
         if not steps[j]:
             continue
         p, pos, i = [], 0, 0
@@ -207,8 +207,8 @@ def limits(steps, t0, t1):
 
 def arrivals(steps, targets):
     """The cycle at which the joints reached each target in turn (moves end exactly at their targets)."""
-    events = sorted((c, j, d) for j in range(6) for c, d in steps[j])
-    pos, out = [0] * 6, []
+    events = sorted((c, j, d) for j in range(JOINTS) for c, d in steps[j])
+    pos, out = [0] * JOINTS, []
     for c, j, d in events:
         pos[j] += d
         while len(out) < len(targets) and pos == targets[len(out)]:
@@ -233,13 +233,13 @@ def figures(trace_path, targets, starved=(), vmax=VMAX, acc=ACCEL):
            if a >= mid0 and b <= mid1 and not any(s0 <= a and b <= s1 for s0, s1 in skip)]
     worst = max(mid)
     worst_at = sum(1 for c in arr if c <= worst[1])  # moves completed when the longest mid-stream gap began
-    prev = [0] * 6
+    prev = [0] * JOINTS
     vj = math.inf
     for k in range(len(targets) - 1):
         vj = min(vj, junction_speed(prev, targets[k], targets[k + 1], vmax, acc))
         prev = targets[k]
     speed, accel = limits(steps, all_t[0], all_t[-1])
-    v0 = math.sqrt(min(acc[j] for j in range(6) if steps[j]) / 2)
+    v0 = math.sqrt(min(acc[j] for j in range(JOINTS) if steps[j]) / 2)
     t = timing.analyse(trace_path)  # interrupts-off windows and compare writes while the look-ahead works
     lat = answer_latency(trace_path)
     pa = passes(trace_path)

@@ -19,7 +19,7 @@ ROOT = os.path.normpath(os.path.join(os.path.dirname(os.path.realpath(__file__))
 sys.path.insert(0, os.path.join(ROOT, "protocol", "python"))
 sys.path.insert(0, os.path.join(ROOT, "tools", "harness"))
 from rbx1proto.link import Link  # noqa: E402
-from rbx1proto.messages import PROTO_VERSION, Key, MsgType, State, Status  # noqa: E402
+from rbx1proto.messages import JOINTS, PROTO_VERSION, Key, MsgType, State, Status  # noqa: E402
 from rbx1_harness.sim_clock import HZ, SimClock  # noqa: E402
 
 AVRSIM = os.environ.get("AVRSIM", os.path.join(ROOT, "build", "bin", "rbx1-avrsim"))
@@ -33,12 +33,12 @@ def analyse(path, phases=(), step_vector=STEP_VECTOR):
     """Figures from a trace file (format: tools/avrsim/trace.hpp). phases: (label, first cycle, last cycle) windows
     (one move each) for which the step ISR's cycles per step are given: all its cycles in the window / pulses."""
     per_phase = [[label, a, b, 0, 0, 0, 0] for label, a, b in phases]  # + calls, cycles, max cycles, pulses
-    level = [0] * 6
-    dirs = [0] * 6
-    net = [0] * 6
-    pulses = [0] * 6
-    last_rise = [None] * 6
-    min_interval = [None] * 6
+    level = [0] * JOINTS
+    dirs = [0] * JOINTS
+    net = [0] * JOINTS
+    pulses = [0] * JOINTS
+    last_rise = [None] * JOINTS
+    min_interval = [None] * JOINTS
     min_width = None
     stack = []                 # running vectors: [vector, entry cycle, pulses raised]
     pending_at = None          # step vector raised (compare match) and not yet entered
@@ -269,18 +269,18 @@ def run(trace_path, estop_trials=20, seed=1):
         try:
             b.queue = b.req(MsgType.HELLO, proto_version=PROTO_VERSION)["queue_size"]
             b.req(MsgType.CONFIG_SET, joint=0xFF, key=Key.HEARTBEAT_MS, value=60000)  # --fast: sim time races
-            for j in range(6):
+            for j in range(JOINTS):
                 b.req(MsgType.CONFIG_SET, joint=j, key=Key.MAX_SPEED, value=CAP)
                 b.req(MsgType.CONFIG_SET, joint=j, key=Key.ACCEL, value=200000)
             b.req(MsgType.ENABLE, enable=1)
-            b.req(MsgType.SET_POSITION, position=[0] * 6)
+            b.req(MsgType.SET_POSITION, position=[0] * JOINTS)
             moves = [("1 joint", [4000, 0, 0, 0, 0, 0]),           # one joint cruising at the cap
                      ("1 joint back", [0, 0, 0, 0, 0, 0]),
                      ("6 joints", [4000, -4000, 4000, -4000, 4000, -4000]),  # six together at the cap
                      ("odd ratios", [-1733, 4100, 977, -2500, 31, 3999]),
                      ("long", [-33000, 1, -3, 7, 0, 0]),           # over 32767 steps: two segments
                      ("slow", [-32997, 1, -3, 7, 0, 1], 600)]      # intervals over 16 bits (chunked waits)
-            pos = [0] * 6
+            pos = [0] * JOINTS
             phases = []
             for label, t, *duration in moves:
                 c0 = b.cycle()
@@ -295,12 +295,12 @@ def run(trace_path, estop_trials=20, seed=1):
             # timer (0..2000: more than the 800-cycle interval at the cap, so every point of the interrupt is hit).
             latencies_ok = True
             for i in range(estop_trials):
-                b.req(MsgType.SET_POSITION, position=[0] * 6)
+                b.req(MsgType.SET_POSITION, position=[0] * JOINTS)
                 sign = 1 if i % 2 == 0 else -1
                 # armed before the move: on its N-th step interrupt (ramping or cruising), D cycles after the match
                 b.control(f"estop 1 @{rng.randrange(0, 2000)}:{rng.randrange(1, 2500)}")
                 b.cycle()  # the command has been read
-                b.req(MsgType.MOVE, target=[sign * 3000] * 6, duration_ms=0)
+                b.req(MsgType.MOVE, target=[sign * 3000] * JOINTS, duration_ms=0)
                 s = b.wait_state(State.FAULT)
                 b.control("estop 0")
                 time.sleep(0.01)

@@ -42,7 +42,7 @@ bool Trace::open(avr_t* avr, const std::string& path, std::string& error) {
   std::fprintf(out_, "# rbx1-avrsim trace 1: S cycle joint level | D cycle joint level | E/X/P cycle vector | "
                      "W cycle length where pc | O cycle ocr1a tcnt1 | K cycle level | w short_windows short_max | "
                      "F cycle cycles own_cycles | f calls\n");
-  for (int j = 0; j < 6; j++) {
+  for (int j = 0; j < RBX1_JOINTS; j++) {
     avr_irq_register_notify(pin_irq(avr, kJoints[j].step), &Trace::on_step, new Hook{this, j});
     avr_irq_register_notify(pin_irq(avr, kJoints[j].dir), &Trace::on_dir, new Hook{this, j});
   }

@@ -11,6 +11,8 @@
 #include <cstdio>
 #include <string>
 
+#include "rbx1_messages.h"  // RBX1_JOINTS
+
 extern "C" {
 #include "sim_avr.h"
 }
@@ -65,7 +67,7 @@ class Trace {
   avr_t* avr_ = nullptr;
   std::FILE* out_ = nullptr;
   uint8_t ibit_ = 0;
-  uint8_t step_[6] = {}, dir_[6] = {};
+  uint8_t step_[RBX1_JOINTS] = {}, dir_[RBX1_JOINTS] = {};
   uint64_t t1_zero_ = 0;   // cycle at which Timer1 last counted from 0 (compare match in CTC, TCNT1 write, start)
   uint8_t t1_div_ = 0;     // Timer1 prescaler (0: stopped)
 };

@@ -61,7 +61,7 @@ static uint8_t cmd_move(const rbx1_frame *f, uint8_t *out) {
     if (!b) {
       r.status = RBX1_QUEUE_FULL;
     } else {
-      int32_t start[6], pos[6];
+      int32_t start[RBX1_JOINTS], pos[RBX1_JOINTS];
       st_position(pos);
       queue_plan_start(start, pos);
       r.status = plan_move(b, start, req.target, req.duration_ms, queue_last());
@@ -99,9 +99,9 @@ static uint8_t cmd_home(const rbx1_frame *f, uint8_t *out) {
   rbx1_home_resp r;
   rbx1_home_req_unpack(&req, f->payload, f->len);
   r.status = rest_allowed(0);
-  if (r.status == RBX1_OK && (req.joint_mask & 0xC0)) r.status = RBX1_BAD_ARG;
+  if (r.status == RBX1_OK && (req.joint_mask & (uint8_t)~RBX1_ALL_JOINTS_MASK)) r.status = RBX1_BAD_ARG;
   if (r.status == RBX1_OK && !sys.enabled) r.status = RBX1_DISABLED;
-  if (r.status == RBX1_OK) homing_start(req.joint_mask ? req.joint_mask : 0x3F);
+  if (r.status == RBX1_OK) homing_start(req.joint_mask ? req.joint_mask : RBX1_ALL_JOINTS_MASK);
   return rbx1_home_resp_pack(&r, out);
 }
 
@@ -151,7 +151,7 @@ static uint8_t cmd_set_position(const rbx1_frame *f, uint8_t *out) {
   if (r.status == RBX1_OK) r.status = soft_limits_check(req.position);
   if (r.status == RBX1_OK) {
     st_set_position(req.position);
-    sys.homed = 0x3F;
+    sys.homed = RBX1_ALL_JOINTS_MASK;
   }
   return rbx1_set_position_resp_pack(&r, out);
 }

@@ -5,6 +5,8 @@
 
 #include <stdint.h>
 
+#include "rbx1_messages.h"
+
 // Brings the board up: outputs in their safe state (drivers disabled, no step pulse, no servo pulse), inputs
 // with pull-ups, serial at SERIAL_BAUD, the 1 kHz profile tick running, the step timer stopped, watchdog on.
 void hal_init(void);
@@ -52,8 +54,8 @@ void hal_irq_restore(hal_irq_state s);
 
 // Called (from the profile tick) when a queue entry completes; the simulator writes its move log from it.
 // kind: 0 = move, 1 = gripper. start/end: positions when the entry began and ended.
-void hal_entry_done(uint8_t kind, uint16_t n, const int32_t target[6], const int32_t start[6], const int32_t end[6],
-                    uint16_t duration_ms, uint16_t pulse_us);
+void hal_entry_done(uint8_t kind, uint16_t n, const int32_t target[RBX1_JOINTS], const int32_t start[RBX1_JOINTS],
+                    const int32_t end[RBX1_JOINTS], uint16_t duration_ms, uint16_t pulse_us);
 
 // Firmware capabilities the board adds to HELLO (RBX1_CAP_SIMULATED on the host).
 uint16_t hal_capabilities(void);

@@ -80,7 +80,7 @@ HAL_INLINE uint8_t hal_limit_inputs(void) {
   uint8_t m = (uint8_t)(HAL_READ(RBX1_J1_LIMIT) | (HAL_READ(RBX1_J2_LIMIT) << 1) | (HAL_READ(RBX1_J3_LIMIT) << 2) |
                         (HAL_READ(RBX1_J4_LIMIT) << 3) | (HAL_READ(RBX1_J5_LIMIT) << 4) |
                         (HAL_READ(RBX1_J6_LIMIT) << 5));
-  return RBX1_LIMIT_TRIGGERED_LEVEL ? m : (uint8_t)(~m & 0x3F);
+  return RBX1_LIMIT_TRIGGERED_LEVEL ? m : (uint8_t)(~m & RBX1_ALL_JOINTS_MASK);
 }
 
 HAL_INLINE uint8_t hal_estop_input(void) {

@@ -67,7 +67,7 @@ static void next_joint(void) {
 }
 
 void homing_start(uint8_t mask) {
-  pending = (uint8_t)(mask & 0x3F);
+  pending = (uint8_t)(mask & RBX1_ALL_JOINTS_MASK);
   next_joint();
 }
 

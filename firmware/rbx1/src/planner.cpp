@@ -146,8 +146,8 @@ static void junction(plan_block *b, const plan_block *p, float vc, uint8_t stret
   b->keep = 1.0f / (1.0f + b->bend8 * bn);
 }
 
-uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6], uint16_t duration_ms,
-                  const plan_block *prev) {
+uint8_t plan_move(plan_block *b, const int32_t start[RBX1_JOINTS], const int32_t target[RBX1_JOINTS],
+                  uint16_t duration_ms, const plan_block *prev) {
   memset(b, 0, sizeof(*b));
   b->kind = BLOCK_MOVE;
   b->duration_ms = duration_ms;

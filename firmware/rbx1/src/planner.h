@@ -6,6 +6,8 @@
 
 #include <stdint.h>
 
+#include "rbx1_messages.h"
+
 #define BLOCK_MOVE 0
 #define BLOCK_GRIPPER 1
 
@@ -29,7 +31,7 @@ struct plan_block {
   uint16_t duration_ms;   // minimum time of the entry: the MOVE's duration_ms or the gripper's dwell
   uint16_t planned_ms;    // the profile's own time from rest to rest (for the move log)
   uint16_t pulse_us;      // gripper pulse
-  uint32_t steps[6];      // |target - start| per joint
+  uint32_t steps[RBX1_JOINTS]; // |target - start| per joint
   uint32_t n;             // dominant joint's steps (the DDA's tick count)
   uint32_t v0;            // start/stop rate (the first step's rate from rest)
   uint32_t vc;            // nominal velocity when joined: the fastest the limits allow, at most n / duration_ms
@@ -50,13 +52,13 @@ struct plan_block {
   uint32_t entry_sq4;
   uint32_t exit_sq4;
   uint32_t decel_steps;
-  int32_t target[6];
+  int32_t target[RBX1_JOINTS];
 };
 
 // Plans start -> target. prev: the queue's last entry (0 when the queue is empty), for the junction limit.
 // Returns RBX1_OK, or RBX1_BAD_ARG if a joint would move 2^31 steps or more.
-uint8_t plan_move(plan_block *b, const int32_t start[6], const int32_t target[6], uint16_t duration_ms,
-                  const plan_block *prev);
+uint8_t plan_move(plan_block *b, const int32_t start[RBX1_JOINTS], const int32_t target[RBX1_JOINTS],
+                  uint16_t duration_ms, const plan_block *prev);
 // A gripper entry: servo pulse then a dwell.
 void plan_gripper(plan_block *b, uint16_t pulse_us, uint16_t dwell_ms);
 // The look-ahead passes over the queue after a commit: backward from the last entry (which ends at its stop rate)

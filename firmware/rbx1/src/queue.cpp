@@ -9,7 +9,7 @@
 static plan_block blocks[QUEUE_SIZE];
 static uint8_t head, tail, count;  // count is changed only with interrupts off
 static uint8_t epoch, reserved_epoch;
-static int32_t last_target[6];
+static int32_t last_target[RBX1_JOINTS];
 static uint8_t last_target_valid;  // 1: last_target holds it; KEPT: the kept entry's target (after a flush)
 #define KEPT 2
 static uint16_t accepted, flushed;
@@ -60,7 +60,7 @@ uint8_t queue_commit(void) {
 
 // Called between queue_reserve() and queue_commit(): a flush after this makes the commit fail, so the copy needs
 // no interrupts-off window.
-void queue_plan_start(int32_t out[6], const int32_t current[6]) {
+void queue_plan_start(int32_t out[RBX1_JOINTS], const int32_t current[RBX1_JOINTS]) {
   hal_irq_state s = hal_irq_save();
   const int32_t *from = count > 0 && last_target_valid ? last_target : current;
   if (count > 0 && last_target_valid == KEPT) from = blocks[(head + QUEUE_SIZE - 1) % QUEUE_SIZE].target;

@@ -18,7 +18,7 @@ plan_block *queue_reserve(void);
 // Publishes the reserved slot. Returns 0 (and drops it) if the queue was flushed since queue_reserve().
 uint8_t queue_commit(void);
 // Position the next MOVE starts from: the last queued move's target, or `current` when the queue is empty.
-void queue_plan_start(int32_t out[6], const int32_t current[6]);
+void queue_plan_start(int32_t out[RBX1_JOINTS], const int32_t current[RBX1_JOINTS]);
 // Oldest entry, or 0 (stepper side).
 plan_block *queue_first(void);
 // The entry after the oldest, or 0 (stepper side: the move it may run on into).

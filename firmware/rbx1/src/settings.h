@@ -5,6 +5,8 @@
 
 #include <stdint.h>
 
+#include "rbx1_messages.h"
+
 #define SETTINGS_JOINT_KEYS 8   // RBX1_KEY_SOFT_MIN (1) .. RBX1_KEY_INVERT_DIR (8)
 #define SETTINGS_GLOBAL_KEYS 3  // RBX1_KEY_HEARTBEAT_MS (16) .. RBX1_KEY_GRIPPER_MAX_US (18)
 #define SETTINGS_GLOBAL_FIRST 16
@@ -12,7 +14,7 @@
 #define SETTINGS_EEPROM_ADDR 0
 
 struct settings_t {
-  int32_t joint[6][SETTINGS_JOINT_KEYS];  // indexed [joint][key - 1]
+  int32_t joint[RBX1_JOINTS][SETTINGS_JOINT_KEYS];  // indexed [joint][key - 1]
   int32_t global[SETTINGS_GLOBAL_KEYS];   // indexed [key - 16]
 };
 extern settings_t settings;

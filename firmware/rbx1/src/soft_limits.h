@@ -5,7 +5,9 @@
 
 #include <stdint.h>
 
+#include "rbx1_messages.h"
+
 // RBX1_OK, or RBX1_SOFT_LIMIT if any joint's target is outside its soft limits.
-uint8_t soft_limits_check(const int32_t target[6]);
+uint8_t soft_limits_check(const int32_t target[RBX1_JOINTS]);
 
 #endif

@@ -32,8 +32,8 @@ struct seg_t {
   uint16_t m;             // dominant steps in the segment
   uint8_t dom;            // the dominant joint's bit: it steps on every tick
   uint8_t act;            // the other joints that step in this segment
-  int16_t inc[6];         // steps per joint in this segment
-  int32_t base[6];        // positions at the segment's start
+  int16_t inc[RBX1_JOINTS];  // steps per joint in this segment
+  int32_t base[RBX1_JOINTS]; // positions at the segment's start
   uint8_t dir;            // bit per joint: positive
   uint8_t dirbits;        // DIR outputs (dir with INVERT_DIR applied)
   uint8_t seq;            // the block's queue seq (plan_block.seq)
@@ -61,8 +61,8 @@ static struct {
   uint16_t iv_first;     // ... iv_first (0x8000..0xFFFF) plus iv_chunks times ST_CHUNK (written by the profile tick)
   uint16_t iv_chunks;
   uint16_t wait_chunks;  // ST_CHUNKs still to wait before the next step (long intervals)
-  int16_t cnt16[6];      // Bresenham: starts at m-1, minus inc each tick, plus m on a step
-  int16_t inc16[6];
+  int16_t cnt16[RBX1_JOINTS]; // Bresenham: starts at m-1, minus inc each tick, plus m on a step
+  int16_t inc16[RBX1_JOINTS];
 } st;
 
 // A homing jog runs this block.
@@ -81,7 +81,7 @@ static struct {
   uint16_t duration_ms;
   uint8_t limits_start;  // limit inputs when the motion started: only new triggers are faults
   uint8_t stopping;      // controlled stop requested
-  int32_t start[6];
+  int32_t start[RBX1_JOINTS];
   uint16_t moves_done;
   uint16_t gripper_us;
 } pf;
@@ -216,7 +216,7 @@ static uint32_t share(uint32_t k, uint32_t total, uint32_t n) {
 }
 
 // Positions of block b after k of its dominant steps.
-static void block_positions(const plan_block *b, uint32_t k, int32_t out[6]) {
+static void block_positions(const plan_block *b, uint32_t k, int32_t out[RBX1_JOINTS]) {
   for (uint8_t i = 0; i < RBX1_JOINTS; i++) {
     int32_t rem = (int32_t)(b->steps[i] - share(k, b->steps[i], b->n));  // still to go before the target
     out[i] = (b->dir_positive & (1u << i)) ? b->target[i] - rem : b->target[i] + rem;
@@ -224,7 +224,7 @@ static void block_positions(const plan_block *b, uint32_t k, int32_t out[6]) {
 }
 
 // Positions now: the current segment's base plus its share of steps. Interrupts go off only to copy 4 bytes.
-void st_position(int32_t out[6]) {
+void st_position(int32_t out[RBX1_JOINTS]) {
   for (;;) {
     hal_irq_state s = hal_irq_save();
     uint8_t c = st.cur, g = st.gen;
@@ -252,7 +252,7 @@ static void bump_gen(void) {
 
 // Makes the current positions the rest positions (steps stopped): segment with m = 0.
 static void settle(void) {
-  int32_t p[6];
+  int32_t p[RBX1_JOINTS];
   st_position(p);
   st.ready = 0;
   seg_t *sg = &segs[st.cur];
@@ -289,7 +289,7 @@ static uint8_t dir_bits(uint8_t dir_positive) {
   uint8_t invert = 0;
   for (uint8_t i = 0; i < RBX1_JOINTS; i++)
     if (SETTING(i, RBX1_KEY_INVERT_DIR)) invert |= (uint8_t)(1u << i);
-  return (uint8_t)((dir_positive ^ invert) & 0x3F);
+  return (uint8_t)((dir_positive ^ invert) & RBX1_ALL_JOINTS_MASK);
 }
 
 // Fills segs[g] with the dominant steps k0.. of block b (up to SEG_MAX of them).
@@ -452,7 +452,7 @@ uint8_t st_busy(void) {
 }
 
 // Only at rest (SET_POSITION in IDLE, homing between jogs).
-void st_set_position(const int32_t p[6]) {
+void st_set_position(const int32_t p[RBX1_JOINTS]) {
   settle();
   memcpy(segs[st.cur].base, p, sizeof(segs[0].base));
   bump_gen();  // readers in the middle of a read start again
@@ -577,7 +577,7 @@ static void advance(void) {
 
 static void complete_entry(void) {
   plan_block *b = pf.block;
-  int32_t end[6];
+  int32_t end[RBX1_JOINTS];
   st_position(end);
   pf.moves_done++;
   hal_entry_done(b->kind, pf.moves_done, b->target, pf.start, end, b->planned_ms, b->pulse_us);
@@ -675,7 +675,7 @@ void st_profile_isr(void) {
   }
   uint8_t moving = steps_running();
   if (moving) {
-    uint8_t watched = (uint8_t)(0x3F & ~st.jog_mask);  // a homing jog's own switch is expected
+    uint8_t watched = (uint8_t)(RBX1_ALL_JOINTS_MASK & ~st.jog_mask);  // a homing jog's own switch is expected
     if ((limits & ~pf.limits_start) & watched) {
       sys_set_fault(RBX1_FAULT_LIMIT_HIT);
       st_abort();

@@ -5,6 +5,8 @@
 
 #include <stdint.h>
 
+#include "rbx1_messages.h"
+
 void st_init(void);
 // Step timer interrupt: one dominant-joint step with Bresenham steps of the others (see the budget in stepper.cpp).
 void st_step_isr(void);
@@ -20,8 +22,8 @@ uint8_t st_stopping(void);
 // 1 while an entry (move, gripper dwell, homing jog) executes.
 uint8_t st_busy(void);
 // Positions in steps (interrupt-safe copy) and their declaration (SET_POSITION, homing).
-void st_position(int32_t out[6]);
-void st_set_position(const int32_t p[6]);
+void st_position(int32_t out[RBX1_JOINTS]);
+void st_set_position(const int32_t p[RBX1_JOINTS]);
 void st_set_joint_position(uint8_t joint, int32_t p);
 // Completed MOVE and GRIPPER entries since power-up.
 uint16_t st_moves_done(void);

@@ -37,7 +37,7 @@ void sys_clear_faults(void) {
 
 uint8_t sys_faulted(void) { return (sys_faults() & RBX1_FAULTS_LATCHING) != 0; }
 
-uint8_t sys_all_homed(void) { return sys.homed == 0x3F; }
+uint8_t sys_all_homed(void) { return sys.homed == RBX1_ALL_JOINTS_MASK; }
 
 uint8_t sys_state(void) {
   if (sys_faulted()) return RBX1_STATE_FAULT;

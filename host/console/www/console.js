@@ -73,16 +73,28 @@ function showPlaces(names) {
   if (have !== names.join('\n'))
     list.replaceChildren(...names.map((p) => Object.assign(document.createElement('option'), { value: p })));
 }
+// The homed mask in words: "all 6 joints", "J1, J3 of 6", "none".
+function homedText(mask, joints) {
+  if (mask === undefined || mask === null) return null;
+  const n = joints || 6;
+  const homed = [...Array(n).keys()].filter((i) => mask & (1 << i)).map((i) => 'J' + (i + 1));
+  return homed.length === n ? 'all ' + n + ' joints' : homed.length ? homed.join(', ') + ' of ' + n : 'none';
+}
+// Firmware faults that stop nothing are notices with what to do, not red faults.
+const NOTICES = { EEPROM_DEFAULTS: 'the board runs on its default settings (its EEPROM was empty or invalid); they are written once settings are set (CONFIG_SET), and Clear fault dismisses this' };
 function showStatus(s) {
   const fw = s.firmware || {};
   if (s.places) showPlaces(s.places);
-  const faulted = fw.state === 'FAULT' || (fw.faults && fw.faults.length);
+  const faults = (fw.faults || []).filter((f) => !NOTICES[f]);
+  const notices = (fw.faults || []).filter((f) => NOTICES[f]).map((f) => NOTICES[f]);
+  const faulted = fw.state === 'FAULT' || faults.length;
   const badge = $('state');
   badge.textContent = s.ready ? 'ready' : faulted ? 'fault' : 'not ready';
   badge.className = 'badge ' + (s.ready ? 'ok' : 'bad');
   $('job').textContent = s.job ? 'job: ' + s.job : '';
   $('job').className = 'badge quiet' + (s.job ? ' busy' : '');
-  const rows = [['firmware', fw.state], ['faults', fw.faults], ['homed', fw.homed], ['joints (°)', s.joints_deg],
+  const rows = [['firmware', fw.state], ['faults', faults], ['notice', notices.length ? notices.join('; ') : null],
+                ['homed', homedText(fw.homed, (s.joints_deg || []).length)], ['joints (°)', s.joints_deg],
                 ['position (steps)', fw.position], ['gripper (µs)', fw.gripper_us],
                 ['link', s.link && (s.link.connected ? 'up ' : 'down ') + (s.link.port || '') + (s.link.error ? ' – ' + s.link.error : '')],
                 ['last e-stop', s.last_estop], ['camera', s.camera], ['calibration', calibrationText(s.calibration)]];

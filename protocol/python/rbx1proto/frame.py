@@ -84,8 +84,8 @@ class Decoder:
     """Streaming decoder. feed() returns the Frames and Rejects completed by the bytes, in stream order.
     A frame whose CRC holds is delivered at its last CRC byte (its parity is skipped when it comes); one whose CRC
     fails is read again with its parity (one byte corrected), then with the length its TYPE implies in place of
-    LEN. The byte right after a delivered frame starts a candidate whatever its value (a damaged SYNC; dropped
-    silently if no reading holds). After a rejection it resumes hunting at the byte after the rejected SYNC (see
+    LEN. The byte right after a delivered frame starts a candidate whatever its value, however late (a damaged
+    SYNC; dropped silently if no reading holds, unless it is a real 0xA5: then rejected like any candidate). After a rejection it resumes hunting at the byte after the rejected SYNC (see
     PROTOCOL.md)."""
 
     def __init__(self):

@@ -7,12 +7,10 @@ import time
 
 from . import frame, messages
 from .messages import MsgType, Status
+from .sender import AHEAD, SLOW_TIMEOUT, SLOW_TYPES, Sender
 
 RESPONSE_BIT = 0x80
-SLOW_TYPES = (MsgType.CONFIG_SET, MsgType.CONFIG_RESET)  # they write EEPROM: answered within 1 s (PROTOCOL.md)
-SLOW_TIMEOUT = 1.0
 INTER_BYTE_TIMEOUT = 0.05  # a partial frame older than this is dropped after a rescan (PROTOCOL.md)
-AHEAD = 4  # stream(): frames on the line ahead of the answers (PROTOCOL.md "Pacing")
 WRITE_STALL = 1.0  # a port that takes no byte for this long (a device that stopped reading): LinkError
 PROBE_TYPE = MsgType.NAK  # a probe: a frame of no request type, NAKed UNKNOWN_TYPE in order (PROTOCOL.md "Probe")
 
@@ -156,192 +154,23 @@ class Link:
             msg_type = MsgType(msg_type)
             frames.append((msg_type, self.seq, frame.encode(self.seq, msg_type, messages.pack_request(msg_type, **fields))))
             self.seq = (self.seq + 1) & 0xFF
-        n, win = len(frames), max(1, self.window)
-        results = [None] * n
-        sent_at = [0.0] * n      # the latest copy's time (the timeout of the slow types)
-        due = [0.0] * n          # when the latest copy's answer is due on the line model (the timeout)
-        answer = [frame.OVERHEAD + max(0, messages.response_len(t)) for t, _, _ in frames]  # answer bytes
-        byte_time = 10.0 / self.baudrate if self.baudrate else 0.0
-        line = [0.0, 0.0]        # when the bytes written so far are out: towards the firmware, and back
-        txs = [[] for _ in range(n)]  # every copy's place in the order of all copies written
-        events = [0] * n         # answers and NAKs naming the request (the k-th is about copy k or later)
-        held = [False] * n       # the firmware said it holds the request (NAK HELD): not lost, not to resend
-        release_copy = [0] * n   # the copy written because a held request's answer showed this one's answer lost
-        by_release = set()       # requests to send again for that reason in this round
-        probes = []              # (SEQ, copy number) of the probes written whose NAK has not come, oldest first
-        tx = 0
-        seen = 0                 # the latest copy an answer or NAK was about: the copies after it are on the line
-        base = nxt = tries = silences = 0  # silences: timeouts since the oldest unanswered request changed
-        oldest_since = 0.0
-        last_timeout_tx = 0
-        cause = {}
-
-        def mark(i, why):
-            again.add(i)
-            cause.setdefault(i, why)
-
-        def model(nbytes, back):
-            """The line model (PROTOCOL.md "Timeout"): a frame written now arrives after the bytes written before it,
-            and its answer goes back after it arrived and after the answers before it; returns when that answer is
-            out."""
-            line[0] += nbytes * byte_time
-            line[1] = max(line[1], line[0]) + back * byte_time
-            return line[1]
-
-        def send(which, resent):
-            nonlocal tx
-            now = self.clock()
-            line[0] = max(line[0], now)
-            for i in which:
-                tx += 1
-                txs[i].append(tx)
-                sent_at[i] = now
-                due[i] = model(len(frames[i][2]), answer[i])
-                if i in by_release:
-                    release_copy[i] = tx
-            by_release.clear()
-            data = b"".join(frames[i][2] for i in which)
-            # Nothing goes out after this write until answers come: a probe behind it shows what it lost.
-            if self.probe and win > 1 and (resent or nxt == n) and (nxt == n or nxt - base >= win):
-                tx += 1
-                seq = (frames[base][1] - 1) & 0xFF  # never in flight: answered before the oldest unanswered one
-                probes.append((seq, tx))
-                data += frame.encode(seq, PROBE_TYPE, b"")
-                model(frame.OVERHEAD, frame.OVERHEAD + 1)
-                self.probes += 1
-            self.write(data)
-
-        def probe_answered(ev):
-            """The copy number of the probe a NAK UNKNOWN_TYPE answers (the oldest written with its SEQ: the earliest
-            it can be about; older probes still waiting were lost), else None."""
-            if ev.type != MsgType.NAK or ev.payload != messages.pack_nak(Status.UNKNOWN_TYPE):
-                return None
-            for k, (seq, copy) in enumerate(probes):
-                if seq == ev.seq:
-                    del probes[:k + 1]
-                    return copy
-            return None
-
-        def deadline(i, silences):
-            """When silence about request i (the oldest unanswered) sends the window again (PROTOCOL.md "Timeout"): a
-            quarter of the timeout, doubled by each silence since i became the oldest, after its latest copy's answer
-            is due on the line model or after i became the oldest (a held request's answer follows the filler's),
-            whichever is later, and never after the timeout; the slow types wait their own time."""
-            if frames[i][0] in SLOW_TYPES:
-                return sent_at[i] + max(self.timeout, SLOW_TIMEOUT)
-            late = sent_at[i] + self.timeout
-            if not byte_time or self.fixed_timeout:
-                return late
-            return min(late, max(due[i], oldest_since) + self.timeout / 4 * 2 ** silences)
-
-        while base < n:
-            # New requests go out as answers come back (PROTOCOL.md "Pacing"): a resend then waits behind a few
-            # frames, not behind the whole window, and is answered before the window runs dry.
-            room = min(n, base + win) - nxt
-            if win > 1 and self.ahead:
-                room = min(room, self.ahead - (tx - seen))
-            if nxt < n and room > 0:
-                fresh = list(range(nxt, nxt + room))
-                nxt = fresh[-1] + 1
-                send(fresh, False)
-            again = set()
-            cause.clear()
-            for ev in self._read_events(deadline(base, silences) - self.clock()):
-                if isinstance(ev, frame.Reject):
-                    self.rejects += 1
-                    continue
-                copy = probe_answered(ev)
-                if copy is not None:
-                    seen = max(seen, copy)
-                    self.probes_answered += 1
-                    if copy < last_timeout_tx:
-                        self.needless_timeouts += 1  # the answers were on their way: the line model was early
-                    # Every unanswered request not held whose latest copy went out before the probe lost it.
-                    for j in range(base, nxt):
-                        if results[j] is None and not held[j] and txs[j][-1] < copy:
-                            mark(j, "probe")
-                    continue
-                k = (ev.seq - frames[base][1]) & 0xFF
-                if k >= nxt - base:
-                    continue  # not in flight: a late copy of an earlier answer
-                i = base + k
-                if ev.type not in (MsgType.NAK, frames[i][0] | RESPONSE_BIT) or results[i] is not None:
-                    continue  # stale: another type with this SEQ, or about a request already answered
-                reason = None
-                if ev.type == MsgType.NAK:
-                    reason = messages.unpack_nak(ev.payload)["reason"] if len(ev.payload) == 1 else None
-                    if reason not in (Status.HELD, Status.SEQ_GAP, Status.UNKNOWN_TYPE, Status.SEQ_OLD):
-                        # BAD_CRC, BAD_LENGTH: its SEQ was read from damaged bytes and may name another request, so
-                        # it is not counted; naming the oldest unanswered one it sends that again (at worst a copy
-                        # answered from the firmware's memory).
-                        if i == base:
-                            mark(i, "bad_crc_nak")
-                        continue
-                events[i] += 1
-                copy = txs[i][min(events[i], len(txs[i])) - 1]  # the earliest copy this event can be about
-                if not (ev.type != MsgType.NAK and held[i]):  # a held request's answer is about no copy
-                    seen = max(seen, copy)
-                if ev.type == MsgType.NAK:
-                    if reason == Status.SEQ_OLD:
-                        self.resync = True
-                        raise LinkError(f"{frames[i][0].name} seq {ev.seq}: NAK {Status(reason).name}")
-                    held[i] = reason == Status.HELD  # a SEQ_GAP after HELD: the firmware dropped it (ESTOP)
-                    if held[i]:
-                        again.discard(i)
-                    elif copy == txs[i][-1]:
-                        mark(i, "refused")  # its latest copy was refused
-                else:
-                    try:
-                        results[i] = messages.unpack_response(frames[i][0], ev.payload)
-                    except ValueError as e:
-                        raise LinkError(f"malformed response {ev.type:#04x} seq {ev.seq}: {e}") from None
-                    again.discard(i)
-                    # The firmware runs requests in SEQ order: every unanswered request before this one ran, and
-                    # its answer (sent before this one) was lost. A held request's answer follows the answer of the
-                    # request that filled the gap, not its own copy: it tells this, and nothing by copies.
-                    for j in range(base, i):
-                        # Not again for the other answers of the same release (they show nothing newer).
-                        if results[j] is None and (held[j] or held[i]) and (held[j] or release_copy[j] != txs[j][-1]):
-                            held[j] = False
-                            mark(j, "release")
-                            by_release.add(j)
-                    if held[i]:
-                        continue
-                # Answers come in frame order: an unanswered request, not held, whose latest copy went out before
-                # this copy lost it (the frame, or its answer).
-                for j in range(base, nxt):
-                    if j != i and results[j] is None and not held[j] and txs[j][-1] < copy:
-                        mark(j, "answer" if ev.type != MsgType.NAK else "nak_" + Status(reason).name.lower())
-            if results[base] is not None:
-                while base < nxt and results[base] is not None:
-                    base += 1
-                tries = silences = 0
-                oldest_since = self.clock()
-                if base == nxt:
-                    seen = tx  # every request written is answered: what was left on the line no longer counts
-            if base == n:
+        s = Sender([t for t, _, _ in frames], [q for _, q, _ in frames], [len(w) for _, _, w in frames], self.window,
+                   ahead=self.ahead, timeout=self.timeout, baudrate=self.baudrate, retries=self.retries,
+                   probe=self.probe, fixed_timeout=self.fixed_timeout, counters=self)
+        writes = s.start(self.clock())
+        while True:
+            for w in writes:
+                self.write(b"".join(frames[i][2] for i in w.frames) +
+                           (frame.encode(w.probe, PROBE_TYPE, b"") if w.probe is not None else b""))
+            if s.finished:
                 break
-            again = sorted(j for j in again if results[j] is None)
-            if not again and base < nxt and self.clock() >= deadline(base, silences):
-                again = [i for i in range(base, nxt) if results[i] is None]  # silence: go back from the oldest
-                self.timeouts += 1 if again else 0
-                silences += 1
-                last_timeout_tx = tx
-                for i in again:
-                    cause.setdefault(i, "timeout_probe_lost" if probes else "timeout_no_probe")
-            if again:
-                if again[0] == base:
-                    tries += 1
-                    if tries > self.retries:
-                        self.resync = True
-                        raise LinkError(f"{frames[base][0].name} seq {frames[base][1]}: no response after "
-                                        f"{self.retries} retransmissions")
-                self.retransmissions += len(again)
-                for i in again:
-                    why = cause.pop(i, "?")
-                    self.causes[why] = self.causes.get(why, 0) + 1
-                send(again, True)
-        return results
+            for ev in self._read_events(s.deadline() - self.clock()):
+                s.feed(ev)
+            writes = s.step(self.clock())
+        if s.error is not None:
+            self.resync = True
+            raise LinkError(s.error)
+        return s.results
 
     def _read_events(self, left):
         """Frames and Rejects decoded from what arrives within `left` seconds (returns as soon as bytes arrive)."""

@@ -5,6 +5,8 @@ import struct
 
 PROTO_VERSION = 5
 GLOBAL_JOINT = 0xFF
+JOINTS = 6  # the joint count: the length of every per-joint array
+ALL_JOINTS_MASK = (1 << JOINTS) - 1  # every joint's bit (HOME, STATUS.homed)
 
 
 class MsgType(enum.IntEnum):

@@ -5,7 +5,7 @@ import time
 
 from rbx1proto import frame, messages
 from rbx1proto.link import Link, LinkError
-from rbx1proto.messages import Fault, MsgType, State, Status
+from rbx1proto.messages import JOINTS, Fault, MsgType, State, Status
 
 from .runner import expect
 from .sim_clock import SimClock
@@ -189,7 +189,7 @@ class Board:
         self.wait(lambda s: s["state"] in (State.IDLE, State.FAULT), 5.0, "motion to end")
         self.ok(MsgType.CLEAR_FAULT)
         self.ok(MsgType.ENABLE, enable=1)
-        self.ok(MsgType.SET_POSITION, position=[0] * 6)
+        self.ok(MsgType.SET_POSITION, position=[0] * JOINTS)
 
 
 def status_name(code):

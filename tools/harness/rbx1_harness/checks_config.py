@@ -1,6 +1,6 @@
 """checks_config.py - CONFIG_GET/SET/RESET: defaults, ranges, unknown keys and joints, EEPROM across a reset."""
 
-from rbx1proto.messages import KEY_INFO, Key, MsgType, Status
+from rbx1proto.messages import JOINTS, KEY_INFO, Key, MsgType, Status
 
 from .board import GLOBAL, brief
 from .runner import check, expect
@@ -12,7 +12,7 @@ def keys_of(is_global):
 
 def snapshot(b):
     conf = {(GLOBAL, k): b.get(GLOBAL, k) for k in keys_of(True)}
-    conf.update({(j, k): b.get(j, k) for j in range(6) for k in keys_of(False)})
+    conf.update({(j, k): b.get(j, k) for j in range(JOINTS) for k in keys_of(False)})
     return conf
 
 
@@ -21,13 +21,13 @@ def restore(b, conf):
     if now == conf:
         return
     # Soft limits first widened, so no intermediate SOFT_MIN > SOFT_MAX is refused.
-    for j in range(6):
+    for j in range(JOINTS):
         b.set(j, Key.SOFT_MIN, -(2**31 - 1))
         b.set(j, Key.SOFT_MAX, 2**31 - 1)
     for (j, k), v in conf.items():
         if k not in (Key.SOFT_MIN, Key.SOFT_MAX) and now[(j, k)] != v:
             b.set(j, k, v)
-    for j in range(6):
+    for j in range(JOINTS):
         b.set(j, Key.SOFT_MIN, conf[(j, Key.SOFT_MIN)])
         b.set(j, Key.SOFT_MAX, conf[(j, Key.SOFT_MAX)])
 
@@ -59,7 +59,7 @@ def config_defaults_ranges_errors(b):
         b.refused(MsgType.CONFIG_SET, Status.BAD_ARG, joint=2, key=Key.SOFT_MIN, value=801)
         b.refused(MsgType.CONFIG_SET, Status.BAD_ARG, joint=2, key=Key.SOFT_MAX, value=-501)
         expect((b.get(2, Key.SOFT_MIN), b.get(2, Key.SOFT_MAX)) == (-500, 800), "soft limits changed by refused sets")
-        for joint, key in ((0, 9), (0, 0), (0, 99), (6, Key.MAX_SPEED), (GLOBAL, Key.MAX_SPEED),
+        for joint, key in ((0, 9), (0, 0), (0, 99), (JOINTS, Key.MAX_SPEED), (GLOBAL, Key.MAX_SPEED),
                            (0, Key.HEARTBEAT_MS)):
             b.refused(MsgType.CONFIG_GET, Status.BAD_ARG, joint=joint, key=key)
             b.refused(MsgType.CONFIG_SET, Status.BAD_ARG, joint=joint, key=key, value=1000)

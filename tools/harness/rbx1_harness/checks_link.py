@@ -5,7 +5,7 @@ import binascii
 import random
 
 from rbx1proto import frame, messages
-from rbx1proto.messages import Cap, MsgType, State, Status
+from rbx1proto.messages import ALL_JOINTS_MASK, JOINTS, Cap, MsgType, State, Status
 
 from .board import brief
 from .runner import check, expect
@@ -36,7 +36,7 @@ def unchanged(board, before):
 def handshake(b):
     r = b.ok(MsgType.HELLO, proto_version=messages.PROTO_VERSION)
     expect(r["proto_version"] == messages.PROTO_VERSION, f"proto_version {r['proto_version']}")
-    expect(r["joints"] == 6, f"joints {r['joints']}")
+    expect(r["joints"] == JOINTS, f"joints {r['joints']}")
     expect(r["queue_size"] >= 2, f"queue_size {r['queue_size']}")
     expect(r["capabilities"] & ~int(sum(Cap)) == 0, f"unknown capability bits {r['capabilities']:#06x}")
     expect(1 <= r["window"] <= 64, f"window {r['window']}")
@@ -46,7 +46,8 @@ def handshake(b):
     r = b.ok(MsgType.HELLO, proto_version=messages.PROTO_VERSION)
     expect(r["last_seq"] == seq, f"last_seq {r['last_seq']}, the previous request had SEQ {seq}")
     r = b.refused(MsgType.HELLO, Status.BAD_VERSION, proto_version=messages.PROTO_VERSION + 1)
-    expect(r["proto_version"] == messages.PROTO_VERSION and r["joints"] == 6, f"BAD_VERSION fields not filled: {r}")
+    expect(r["proto_version"] == messages.PROTO_VERSION and r["joints"] == JOINTS,
+           f"BAD_VERSION fields not filled: {r}")
 
 
 @check("response_time")
@@ -67,8 +68,8 @@ def response_time(b):
 def status_and_heartbeat(b):
     s = b.status()
     expect(s["state"] == State.IDLE, f"not IDLE after prepare: {brief(s)}")
-    expect(s["homed"] == 0x3F and s["enabled"] == 1, f"SET_POSITION/ENABLE not reflected: {brief(s)}")
-    expect(s["position"] == [0] * 6 and s["queue_free"] == b.queue_size, brief(s))
+    expect(s["homed"] == ALL_JOINTS_MASK and s["enabled"] == 1, f"SET_POSITION/ENABLE not reflected: {brief(s)}")
+    expect(s["position"] == [0] * JOINTS and s["queue_free"] == b.queue_size, brief(s))
     b.ok(MsgType.HEARTBEAT)
     b.ok(MsgType.SET_POSITION, position=[11, -22, 33, -44, 55, -66])
     expect(b.status()["position"] == [11, -22, 33, -44, 55, -66], "SET_POSITION not reflected in STATUS")
@@ -118,7 +119,7 @@ def wrong_length_response(b):
 def corrupt_frame_nak(b):
     before = b.status()
     # The next SEQ, not consumed: a frame the firmware rejects takes no place in its order.
-    seq, wire = b.frame(MsgType.MOVE, seq=b.link.seq, target=[100] * 6, duration_ms=0)
+    seq, wire = b.frame(MsgType.MOVE, seq=b.link.seq, target=[100] * JOINTS, duration_ms=0)
     # Two damaged bytes each time: the parity corrects one (damaged_byte_corrected), so two are what a frame the
     # firmware must reject takes.
     crc = len(wire) - frame.OVERHEAD + 4  # the first CRC byte
@@ -185,7 +186,7 @@ def length_over_max_nak(b):
     ev = b.exchange_raw(bytes([frame.SYNC, frame.MAX_PAYLOAD + 1, seq, 0x55]), until=lambda e: naks(e))
     expect([r for _, r in naks(ev)] == [Status.BAD_LENGTH], f"LEN 59, TYPE 0x55: expected NAK BAD_LENGTH, got {ev}")
     # A MOVE whose LEN reads 59 and one more byte damaged: the reading with MOVE's own length fails too.
-    _, wire = b.frame(MsgType.MOVE, seq=seq, target=[100] * 6, duration_ms=0)
+    _, wire = b.frame(MsgType.MOVE, seq=seq, target=[100] * JOINTS, duration_ms=0)
     bad = bytearray(wire)
     bad[1] = frame.MAX_PAYLOAD + 1
     bad[8] ^= 0x01
@@ -240,7 +241,7 @@ def partial_frame_rescanned(b):
     # PROTOCOL.md: the inter-byte timeout drops a partial frame's SYNC and rescans the bytes after it, so a whole
     # frame that a truncated one swallowed is still found and answered; the truncated one is never executed.
     before = b.status()
-    _, cut = b.frame(MsgType.MOVE, seq=b.link.seq, target=[100] * 6, duration_ms=0)
+    _, cut = b.frame(MsgType.MOVE, seq=b.link.seq, target=[100] * JOINTS, duration_ms=0)
     seq, wire = b.frame(MsgType.STATUS)
     ev = b.exchange_raw(cut[:10] + wire, until=lambda e: responses(e, MsgType.STATUS, seq), timeout=0.5)
     expect(len(responses(ev, MsgType.STATUS, seq)) == 1, f"the swallowed STATUS was not found by the rescan: {ev}")

@@ -1,7 +1,7 @@
 """checks_motion.py - moves to exact step targets, timing, queue flow control, gripper, STOP, soft limits,
 requests refused while moving, disabled drivers, not-homed refusal and homing against a simulated switch."""
 
-from rbx1proto.messages import Key, MsgType, State, Status
+from rbx1proto.messages import ALL_JOINTS_MASK, JOINTS, Key, MsgType, State, Status
 
 from .board import brief, latching
 from .runner import check, expect
@@ -113,7 +113,7 @@ def stop_controlled(b):
     expect(latching(s["faults"]) == 0, f"STOP latched a fault: {brief(s)}")
     b.sleep(0.1)
     expect(b.status()["position"] == s["position"], "still moving after STOP")
-    r = b.move([0] * 6)
+    r = b.move([0] * JOINTS)
     expect(r["status"] == Status.OK, f"MOVE after STOP: {r}")
     b.wait_idle()
 
@@ -147,7 +147,7 @@ def soft_limits(b):
 @check("busy_while_moving")
 def busy_while_moving(b):
     start_long_move(b)
-    b.refused(MsgType.SET_POSITION, Status.BUSY, position=[0] * 6)
+    b.refused(MsgType.SET_POSITION, Status.BUSY, position=[0] * JOINTS)
     b.refused(MsgType.HOME, Status.BUSY, joint_mask=0)
     b.refused(MsgType.ENABLE, Status.BUSY, enable=0)
     b.refused(MsgType.CONFIG_SET, Status.BUSY, joint=0, key=Key.MAX_SPEED, value=1000)
@@ -182,11 +182,11 @@ def not_homed_after_power_up(b):
     s = b.status()
     expect(s["homed"] == 0 and s["enabled"] == 0 and s["state"] == State.IDLE, f"power-up state: {brief(s)}")
     b.ok(MsgType.ENABLE, enable=1)
-    b.refused(MsgType.MOVE, Status.NOT_HOMED, target=[0] * 6, duration_ms=0)
+    b.refused(MsgType.MOVE, Status.NOT_HOMED, target=[0] * JOINTS, duration_ms=0)
     b.refused(MsgType.GRIPPER, Status.NOT_HOMED, pulse_us=1500, dwell_ms=0)
     b.ok(MsgType.SET_POSITION, position=[5, 0, 0, 0, 0, 0])
-    expect(b.status()["homed"] == 0x3F, "SET_POSITION did not mark the joints homed")
-    r = b.move([0] * 6)
+    expect(b.status()["homed"] == ALL_JOINTS_MASK, "SET_POSITION did not mark the joints homed")
+    r = b.move([0] * JOINTS)
     expect(r["status"] == Status.OK, f"MOVE once declared: {r}")
     b.wait_idle()
 

@@ -2,7 +2,7 @@
 their fault until CLEAR_FAULT."""
 
 from rbx1proto import frame
-from rbx1proto.messages import Fault, Input, Key, MsgType, State, Status
+from rbx1proto.messages import JOINTS, Fault, Input, Key, MsgType, State, Status
 
 from .board import brief, latching
 from .checks_link import responses
@@ -23,7 +23,7 @@ def clears(b):
     s = b.status()
     expect(s["state"] == State.IDLE and latching(s["faults"]) == 0, f"after CLEAR_FAULT: {brief(s)}")
     b.ok(MsgType.ENABLE, enable=1)
-    r = b.move([0] * 6)
+    r = b.move([0] * JOINTS)
     expect(r["status"] == Status.OK, f"MOVE after CLEAR_FAULT: {r}")
     b.wait_idle()
 
@@ -39,7 +39,7 @@ def estop_message_latches(b):
     expect(s["state"] == State.FAULT and s["faults"] & Fault.ESTOP_COMMAND, f"after ESTOP: {brief(s)}")
     expect(s["queue_free"] == b.queue_size, f"queue not flushed: {brief(s)}")
     frozen(b, s, "ESTOP")
-    b.refused(MsgType.MOVE, Status.FAULT_ACTIVE, target=[0] * 6, duration_ms=0)
+    b.refused(MsgType.MOVE, Status.FAULT_ACTIVE, target=[0] * JOINTS, duration_ms=0)
     b.refused(MsgType.GRIPPER, Status.FAULT_ACTIVE, pulse_us=1500, dwell_ms=0)
     clears(b)
     # ESTOP is exempt from duplicate suppression: the very same frame (same SEQ, same CRC), sent again while the
@@ -79,7 +79,7 @@ def estop_input_latches(b):
     expect(s["faults"] & Fault.ESTOP_INPUT and s["inputs"] & Input.ESTOP, f"after the e-stop input: {brief(s)}")
     frozen(b, s, "the e-stop input")
     b.refused(MsgType.CLEAR_FAULT, Status.ESTOP_ACTIVE)
-    b.refused(MsgType.MOVE, Status.FAULT_ACTIVE, target=[0] * 6, duration_ms=0)
+    b.refused(MsgType.MOVE, Status.FAULT_ACTIVE, target=[0] * JOINTS, duration_ms=0)
     b.ctl("estop 0")
     b.wait(lambda s: not s["inputs"] & Input.ESTOP, 1.0, "the e-stop input released")
     expect(b.status()["state"] == State.FAULT, "the fault did not stay latched after releasing the input")
@@ -122,7 +122,7 @@ def heartbeat_loss(b):
                 break
             b.ok(MsgType.STOP)
             b.wait_idle()
-            b.ok(MsgType.SET_POSITION, position=[0] * 6)
+            b.ok(MsgType.SET_POSITION, position=[0] * JOINTS)
         expect(s["state"] == State.FAULT and s["faults"] & Fault.HEARTBEAT_LOST,
                f"no HEARTBEAT_LOST after {silence} s of silence while moving: {brief(s)}")
         expect(s["queue_free"] == b.queue_size, f"queue not flushed: {brief(s)}")

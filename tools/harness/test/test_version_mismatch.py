@@ -53,7 +53,7 @@ class OtherVersionFirmware:
     def hello_answer(self, seq):
         payload = messages.pack_response(
             MsgType.HELLO, status=Status.BAD_VERSION, proto_version=self.version, fw_major=9, fw_minor=0,
-            fw_patch=0, joints=6, queue_size=16, capabilities=0, last_seq=0, window=8)
+            fw_patch=0, joints=messages.JOINTS, queue_size=16, capabilities=0, last_seq=0, window=8)
         return frame.encode(seq, MsgType.HELLO | 0x80, payload)
 
     def close(self):
