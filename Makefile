@@ -57,6 +57,8 @@ bench: host firmware
 	@tools/bench/console-live
 	@tools/bench/world
 	@tools/bench/mqtt
+	@tools/bench/history
+	@tools/bench/jobs
 
 fuzz: deps
 	@protocol/fuzz/run $(FUZZ_SECONDS)

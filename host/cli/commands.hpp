@@ -18,6 +18,8 @@ void add_daemon_commands(CLI::App& app, int& exit_code);
 void add_operator_commands(CLI::App& app, int& exit_code);
 // urdf: the robot description (host/cli/cmd_urdf.cpp).
 void add_description_commands(CLI::App& app, int& exit_code);
+// sort, clear, recipe save, history: the cell's jobs (host/cli/cmd_jobs.cpp).
+void add_jobs_commands(CLI::App& app, int& exit_code);
 
 // $RBX1_SOCKET or the default socket path.
 std::string default_socket();

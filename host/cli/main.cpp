@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   rbx1::cli::add_daemon_commands(app, exit_code);
   rbx1::cli::add_operator_commands(app, exit_code);
   rbx1::cli::add_description_commands(app, exit_code);
+  rbx1::cli::add_jobs_commands(app, exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp&) {

@@ -5,8 +5,11 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <map>
+#include <sstream>
 #include <mutex>
 #include <thread>
 
@@ -57,6 +60,15 @@ int http_status_for(const json& final_line) {
   if (daemon::is_request_error(code)) return 400;  // the request itself (error_codes.hpp)
   if (code == "shutting_down") return 503;
   return 409;  // the arm could not do it now (busy, not_ready, estop, object_absent, ...)
+}
+
+constexpr const char* kChartJs = "/usr/share/javascript/chart.js/chart.min.js";
+
+std::string read_file(const char* path) {
+  std::ifstream f(path, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
 }
 
 // The commands the request layer knows that a console may call (command_table.hpp: all but the socket-only ones).
@@ -114,6 +126,7 @@ struct Console::Impl {
   std::thread bus_thread;
   int port = 0;
   json info;
+  std::string scans_dir;  // the history's scan images ("" = none)
   std::mutex pages_mutex;
   struct PageStreams {
     int open = 0;
@@ -194,7 +207,8 @@ struct Console::Impl {
       send_json(res, 403, error_json("not_allowed", std::string(spec.name) + " is not available from the console (the Unix socket only)"));
       return;
     }
-    if (spec.mode == daemon::Mode::Immediate && spec.access == daemon::Access::Read && request.command != daemon::Command::Status) {
+    if (spec.mode == daemon::Mode::Immediate && spec.access == daemon::Access::Read && request.command != daemon::Command::Status &&
+        request.command != daemon::Command::History) {
       send_json(res, 400, error_json("bad_request", std::string(spec.name) + ": use GET /api/events for the bus"));
       return;
     }
@@ -263,6 +277,24 @@ struct Console::Impl {
     send_json(res, http_status_for(ex->final_line), body);
   }
 
+  void history(const httplib::Request& req, httplib::Response& res) {
+    json r{{"cmd", "history"}};
+    for (const char* k : {"limit", "job"})
+      if (req.has_param(k)) r[k] = std::atoll(req.get_param_value(k).c_str());
+    for (const char* k : {"since", "format"})
+      if (req.has_param(k)) r[k] = req.get_param_value(k);
+    if (r.value("format", "") != "csv") return run_request(r.dump(), res);
+    daemon::Request request;
+    daemon::Error err;
+    if (!daemon::parse_request(r.dump(), request, err)) return send_json(res, 400, error_json(err.code, err.message));
+    auto q = daemon::submit(submit, request);
+    std::vector<json> events;
+    json final;
+    if (!q->wait_final(events, final, 10000)) return send_json(res, 504, error_json("timeout", "no history within 10 s"));
+    if (!final.contains("result")) return send_json(res, http_status_for(final), final);
+    res.set_content(final["result"].value("csv", ""), "text/csv");
+  }
+
   void routes() {
     http.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
       std::string what = "internal error";
@@ -307,6 +339,24 @@ struct Console::Impl {
 
     http.Get("/api/info", [this](const httplib::Request& req, httplib::Response& res) {
       if (allowed(req, res, Kind::Read)) send_json(res, 200, info);
+    });
+    // Chart.js for the history page: Debian's libjs-chart.js from the disk, never fetched from a network.
+    http.Get("/chart.js", [](const httplib::Request&, httplib::Response& res) {
+      static const std::string js = read_file(kChartJs);
+      if (js.empty()) return send_json(res, 404, error_json("not_found", std::string(kChartJs) + ": missing (apt install libjs-chart.js)"));
+      res.set_header("Cache-Control", "max-age=86400");
+      res.set_content(js, "text/javascript; charset=utf-8");
+    });
+    // A pick's scan as the history kept it (404 no_image once the image budget removed it).
+    http.Get(R"(/api/history/scan/(\d{1,18})\.jpg)", [this](const httplib::Request& req, httplib::Response& res) {
+      if (!allowed(req, res, Kind::Read)) return;
+      std::string jpeg = scans_dir.empty() ? "" : read_file((scans_dir + "/" + std::string(req.matches[1]) + ".jpg").c_str());
+      if (jpeg.empty()) return send_json(res, 404, error_json("no_image", "no image kept for this scan ([history] max_mb)"));
+      res.set_content(jpeg, "image/jpeg");
+    });
+    // The jobs' history (rbx1 history): JSON, or the picks as CSV with ?format=csv.
+    http.Get("/api/history", [this](const httplib::Request& req, httplib::Response& res) {
+      if (allowed(req, res, Kind::Read)) history(req, res);
     });
     http.Get("/api/scan", [this](const httplib::Request& req, httplib::Response& res) {
       if (!allowed(req, res, Kind::Read)) return;
@@ -402,6 +452,8 @@ Console::Console(ConsoleConfig config, Submit submit, daemon::Bus& bus, camera::
 }
 
 Console::~Console() { stop(); }
+
+void Console::serve_scans(std::string dir) { impl_->scans_dir = std::move(dir); }
 
 int Console::start(std::string& error) {
   Impl& m = *impl_;

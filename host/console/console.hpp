@@ -31,6 +31,8 @@ class Console {
   std::string url() const;
   // The daemon's scan hook: the annotated image (Figure 20) and the detection JSON of each scan.
   void scan_done(const cv::Mat& annotated, const nlohmann::json& detections);
+  // The history's scan images (STATE_DIR/scans, host/history): GET /api/history/scan/ID.jpg (set before start()).
+  void serve_scans(std::string dir);
 
  private:
   struct Impl;

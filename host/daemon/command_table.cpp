@@ -1,10 +1,11 @@
 // command_table.cpp - the table of requests, and the generic reading and writing of their fields.
 #include "command_table.hpp"
 
-#include "rbx1_messages.h"
-
 #include <algorithm>
 #include <cmath>
+
+#include "jobs_request.hpp"
+#include "rbx1_messages.h"
 
 namespace rbx1::daemon {
 
@@ -96,7 +97,28 @@ const std::vector<CommandSpec> kTable = {
      check_calibrate, write_calibrate},
     {Command::Subscribe, "subscribe", Access::Read, Mode::Immediate,
      "stream the bus (status, events, scans) as JSON lines until the client closes",
-     {{"topics", F::Names, false, &Request::topics, "topics to stream (default: all)", 0, 0, kTopicNames}}},
+     {{"topics", F::Names, false, &Request::topics, "topics to stream (default: all)", 0, 0, kTopicNames}}},    // The cell's jobs (sort_jobs.cpp; jobs_request.cpp checks the recipe).
+    {Command::Sort, "sort", Access::Act, Mode::Job,
+     "sort the table: each class to its recipe's place, until nothing the recipe maps is left",
+     {{"recipe", F::Any, true, &Request::recipe, "a saved recipe's name, or {\"CLASS\": \"PLACE\", \"*\": ..., \"unknown\": ...}"},
+      {"max_picks", F::Integer, false, &Request::max_picks, "stop after this many picks", 1, 100000}},
+     check_sort_request},
+    {Command::Clear, "clear", Access::Act, Mode::Job, "clear the table: every pickable object to one place",
+     {{"place", F::Name, true, &Request::place, "a place of [arm] places"},
+      {"max_picks", F::Integer, false, &Request::max_picks, "stop after this many picks", 1, 100000}}},
+    {Command::RecipeSave, "recipe_save", Access::Act, Mode::Immediate,
+     "save a recipe (checked against places and library) in STATE_DIR/recipes.json",
+     {{"name", F::Name, true, &Request::name, "the recipe's name"},
+      {"recipe", F::Any, true, &Request::recipe, "{\"CLASS\": \"PLACE\", \"*\": \"PLACE\", \"unknown\": \"PLACE\"}"}},
+     check_recipe_save_request},
+    {Command::History, "history", Access::Read, Mode::Immediate, "the jobs and pick attempts of STATE_DIR/history.sqlite",
+     {{"limit", F::Integer, false, &Request::limit, "rows of each kind (default 100)", 1, 100000},
+      {"job", F::Integer, false, &Request::job, "one job's rows", 1, 2147483647},
+      {"since", F::Name, false, &Request::since, "rows from this UTC time (ISO-8601 or a prefix)"},
+      {"format", F::Choice, false, &Request::format, "json (default) or csv (adds \"csv\")", 0, 0, "json|csv"}}},
+    {Command::Pause, "pause", Access::Act, Mode::Immediate, "pause the sort or clear after the pick under way", {}},
+    {Command::Resume, "resume", Access::Act, Mode::Immediate, "resume a paused sort or clear", {}},
+    {Command::Cancel, "cancel", Access::Act, Mode::Immediate, "cancel the sort or clear after the pick under way; home", {}},
 };
 
 std::vector<std::string> split_choices(const char* choices) {

@@ -29,6 +29,7 @@ bool load_config(const std::string& file, const Overrides& overrides, Config& ou
   parse_operator_config(top.section("operator"), out.op);
   ros2::parse_ros2_config(top.section("ros2"), out.daemon.arm_id, out.ros2);  // the ROS namespace names the arm
   mqtt::parse_mqtt_config(top.section("mqtt"), out.daemon.arm_id, out.mqtt);
+  rbx1::history::parse_history_config(top.section("history"), out.history);
   top.reject_unknown();  // a misspelt table name must not pass silently
 
   if (!overrides.port.empty()) out.link.port = overrides.port;

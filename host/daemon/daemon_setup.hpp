@@ -8,6 +8,7 @@
 #include "daemon_config.hpp"
 #include "frame_source.hpp"
 #include "gpio.hpp"
+#include "history.hpp"
 #include "link.hpp"
 #include "mqtt_config.hpp"
 #include "operator_config.hpp"
@@ -27,6 +28,7 @@ struct Config {
   OperatorConfig op;  // [operator]
   ros2::Ros2Config ros2;
   mqtt::MqttConfig mqtt;
+  rbx1::history::HistoryConfig history;  // [history]
 };
 
 // Command-line and environment overrides, applied after the file (documented in README.md).

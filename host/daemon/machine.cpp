@@ -94,6 +94,7 @@ int Machine::start(std::string& error) {
   // What the operator taught overrides the file's defaults (scan pose, places, workspace map, background, library).
   state_ = std::make_unique<StateDir>(config_.daemon.state_dir);
   if (!state_->apply(config_, error)) return -EINVAL;
+  if (!open_history(error)) return -EINVAL;
   {
     calib::WorkspaceCalibration w;
     bool saved = config_.arm.camera.pixel_map && calib::load_workspace(state_->path(kWorkspaceFile), w, error);
@@ -233,6 +234,7 @@ void Machine::handle(const Request& request, std::shared_ptr<Reply> reply) {
       if (on_shutdown_) on_shutdown_();
       return;
     default:
+      if (handle_jobs_request(request, *reply)) return;
       break;
   }
   std::lock_guard lock(mutex_);
@@ -517,6 +519,7 @@ void Machine::run_job(Job& job) {
     case Command::Background: job_background(reply, job.request.frames); break;
     case Command::Teach: job_teach(reply, job.request); break;
     case Command::CalibrateWorkspace: job_calibrate_workspace(reply, job.request); break;
+    case Command::Sort: case Command::Clear: job_sort(reply, job.request); break;
     default: reply.error("bad_request", "not a job"); break;
   }
   if (!reply.finished()) reply.error("internal", "job ended without a result");
@@ -652,7 +655,8 @@ bool Machine::capture_and_detect(Reply& reply, nlohmann::json& detections, std::
     if (written) ev["annotated"] = config_.daemon.annotate;
     else spdlog::warn("annotate: {}: cannot write the annotated image {}", config_.daemon.annotate, aerr);
   }
-  if (on_scan_) on_scan_(vision::annotate(processed, det, vision_->calibrated()), detections);  // before the event
+  last_annotated_ = vision::annotate(processed, det, vision_->calibrated());  // also the history's scan image
+  if (on_scan_) on_scan_(last_annotated_, detections);  // before the event
   bus_.publish(Topic::Scans, {{"ts", iso_now()}, {"detections", detections}});
   reply.event("detected", ev);
   return true;

@@ -5,6 +5,7 @@
 #include <condition_variable>
 #include <deque>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -14,6 +15,7 @@
 #include "bus.hpp"
 #include "bus_stream.hpp"
 #include "daemon_setup.hpp"
+#include "history.hpp"
 #include "motion.hpp"
 #include "server.hpp"
 #include "state_dir.hpp"
@@ -93,6 +95,14 @@ class Machine {
   void job_background(Reply& reply, int frames);
   void job_teach(Reply& reply, const Request& request);
   void job_calibrate_workspace(Reply& reply, const Request& request);
+  // The cell's jobs (sort_jobs.cpp): sort by a recipe, clear to one place, each pick into the history; and the
+  // requests answered at once: pause, resume, cancel, history, recipe_save (true when request was one of them).
+  friend class SortRun;
+  void job_sort(Reply& reply, const Request& request);
+  bool handle_jobs_request(const Request& request, Reply& reply);
+  bool open_history(std::string& error);
+  // The recipe's places are known and its classes in the library (clear: places only); else error naming one.
+  bool check_recipe_here(const std::map<std::string, std::string>& recipe, bool places_only, std::string& error);
   // The camera-to-arm map in force for status: {"in_force": "mount"} or the saved workspace calibration's figures.
   nlohmann::json calibration_summary(const calib::WorkspaceCalibration* w) const;
   bool current_pose(Reply& reply, arm::Steps& steps, arm::Joints& deg);  // a fresh STATUS; false after reply.error
@@ -114,6 +124,10 @@ class Machine {
   std::unique_ptr<vision::Vision> vision_;
   std::unique_ptr<StateDir> state_;                    // [daemon] state_dir
   std::unique_ptr<WorkspaceSession> workspace_;        // the calibration in progress (worker thread only)
+  std::unique_ptr<history::History> history_;          // STATE_DIR/history.sqlite (sort_jobs.cpp)
+  enum class JobControl { Run, Pause, Cancel };
+  std::atomic<JobControl> job_control_{JobControl::Run};  // the running sort or clear's pause/resume/cancel
+  cv::Mat last_annotated_;                             // the last scan's annotated image (worker thread)
   nlohmann::json calibration_;                         // calibration_summary of the map in force (under mutex_)
   std::unique_ptr<gpio::EdgeSource> estop_source_;
   std::unique_ptr<gpio::InputWatcher> estop_input_;

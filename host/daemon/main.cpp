@@ -100,6 +100,7 @@ int main(int argc, char** argv) {
           machine.handle(r, std::move(reply));
         },
         machine.bus(), machine.camera(), config.daemon.job_timeout_s, nlohmann::json{{"places", places}});
+    console->serve_scans(config.daemon.state_dir + "/" + rbx1::history::kScansDir);
     if (console->start(error) < 0) {
       spdlog::error("{}", error);
       machine.stop();

@@ -20,6 +20,8 @@ enum class Command {
   // The operator's commands (host/daemon/README.md "Operator commands").
   Jog, PoseSave, PlaceSave, Background, Teach, CalibrateWorkspace,
   Subscribe,
+  // The cell's jobs and their control (sort_jobs.cpp; jobs_request.cpp checks the recipe).
+  Sort, Clear, RecipeSave, History, Pause, Resume, Cancel,
 };
 
 struct Request {
@@ -37,6 +39,13 @@ struct Request {
   bool mirror_ok = false;  // teach
   std::string action;  // calibrate_workspace: start, status, record, fit, save, cancel
   std::vector<std::string> topics;  // subscribe: bus topics (empty: all)
+  // sort: a saved recipe's name (a string) or the recipe itself (class -> place); recipe_save: name and recipe.
+  nlohmann::json recipe;
+  int max_picks = 0;   // sort, clear: 0 = no limit
+  int limit = 0;       // history: rows of each kind (0 = the default)
+  int job = 0;         // history: one job's rows (0 = all)
+  std::string since;   // history: rows from this ISO-8601 time (a prefix: "2026-12-02")
+  std::string format;  // history: "json" (default) or "csv"
 };
 
 // An error reply: {"error": {"code": code, "message": message}}. Codes are stable strings clients test.

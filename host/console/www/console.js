@@ -253,6 +253,7 @@ function connectEvents() {
     logEvent(e);
     if (e.scan !== undefined) loadScan();
     if (e.result !== undefined || e.error || e.event === 'estop') pollStatus();
+    if (e.cmd === 'sort' || e.cmd === 'clear') showJob(e);
   };
 }
 $('log-clear').addEventListener('click', () => $('log').replaceChildren());
@@ -332,6 +333,47 @@ action('calib-fit', () => calib({ action: 'fit' }));
 action('calib-save', () => calib({ action: 'save' }));
 action('calib-cancel', () => calib({ action: 'cancel' }));
 
+// ---- the cell's jobs: sort and clear run long; their progress comes with the event stream -----------------------
+function recipeField() {
+  const text = $('sort-recipe').value.trim();
+  if (!text.startsWith('{')) return text;
+  try { return JSON.parse(text); } catch (e) { return null; }
+}
+function showJob(e) {
+  const p = $('job-progress');
+  if (e.event === 'progress') {
+    p.textContent = `${e.cmd} (job ${e.job}): ${e.phase} - picked ${e.picked}, ${e.left} left, ` +
+                    `${e.elapsed_s} s, ${e.rate_per_min} picks/min`;
+    p.dataset.phase = e.phase;
+  } else if (e.result !== undefined) {
+    const r = e.result;
+    p.textContent = `${e.cmd} (job ${r.job}) ${r.outcome}: picked ${r.picked_total} in ${r.elapsed_s} s ` +
+                    `(${r.picks_per_min}/min), failed ${r.failed}, skipped ${r.skipped.length}`;
+    p.dataset.phase = 'ended';
+  } else if (e.error) {
+    p.textContent = `${e.cmd}: ${e.error.code}: ${e.error.message}`;
+    p.dataset.phase = 'ended';
+  } else if (e.event === 'skipped') {
+    p.title = (p.title ? p.title + '\n' : '') + `skipped ${e.class}: ${e.reason} (${e.detail})`;
+  }
+}
+action('sort', () => {
+  const recipe = recipeField();
+  if (!recipe) return say('sort: a recipe name or a JSON object {"CLASS": "PLACE"}', 'error');
+  $('job-progress').title = '';
+  return call('sort', { recipe });
+});
+action('recipe-save', () => {
+  const recipe = recipeField();
+  const name = prompt('save this recipe as');
+  if (!recipe || typeof recipe !== 'object' || !name) return say('recipe: type a JSON recipe, then a name', 'error');
+  return call('recipe_save', { name, recipe });
+});
+action('clear', () => call('clear', { place: $('clear-place').value.trim() }));
+action('job-pause', () => call('pause'));
+action('job-resume', () => call('resume'));
+action('job-cancel', () => call('cancel'));
+
 async function loadInfo() {
   try {
     const r = await fetch('/api/info', { headers: headers(false) });
@@ -341,6 +383,7 @@ async function loadInfo() {
     $('jog-panel').hidden = !has.has('jog');
     $('teach-panel').hidden = !(has.has('pose_save') || has.has('place_save') || has.has('background') || has.has('teach'));
     $('calib-panel').hidden = !has.has('calibrate_workspace');
+    $('jobs-panel').hidden = !has.has('sort');
   } catch (e) { /* optional */ }
 }
 

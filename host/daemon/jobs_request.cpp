@@ -1,0 +1,44 @@
+// jobs_request.cpp - the cell jobs' request checks beyond their fields' types: a sort's recipe is a saved recipe's
+// name or a map of class to place names; a saved recipe is a map (recipes.hpp checks places and classes when run).
+#include "jobs_request.hpp"
+
+namespace rbx1::daemon {
+
+namespace {
+
+bool bad(Error& error, const std::string& message) {
+  error = {"bad_field", message};
+  return false;
+}
+
+bool printable(const nlohmann::json& v) {
+  if (!v.is_string()) return false;
+  const auto& s = v.get_ref<const std::string&>();
+  if (s.empty() || s.size() > 64) return false;
+  for (unsigned char c : s)
+    if (c < 0x20 || c == 0x7f) return false;
+  return true;
+}
+
+bool recipe_map(const nlohmann::json& r) {
+  if (!r.is_object() || r.empty()) return false;
+  for (const auto& [cls, place] : r.items())
+    if (!printable(nlohmann::json(cls)) || !printable(place)) return false;
+  return true;
+}
+
+constexpr const char* kMapForm = "an object of class to place, e.g. {\"bolt\": \"tray\", \"*\": \"bin\"} (names of 1-64 printable characters)";
+
+}  // namespace
+
+bool check_sort_request(const nlohmann::json&, Request& out, Error& error) {
+  if (printable(out.recipe) || recipe_map(out.recipe)) return true;
+  return bad(error, std::string("\"recipe\" must be a saved recipe's name or ") + kMapForm);
+}
+
+bool check_recipe_save_request(const nlohmann::json&, Request& out, Error& error) {
+  if (recipe_map(out.recipe)) return true;
+  return bad(error, std::string("\"recipe\" must be ") + kMapForm);
+}
+
+}  // namespace rbx1::daemon

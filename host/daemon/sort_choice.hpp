@@ -1,0 +1,50 @@
+// sort_choice.hpp - which object a sort or clear picks next: the detection's objects under a recipe, those that
+// cannot be picked safely skipped with a reason, the rest ranked (disturbs no neighbour first, then shortest travel).
+#pragma once
+#include <map>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "recipes.hpp"
+
+namespace rbx1::daemon {
+
+// An object known by its class and where it lay (centroid_cm): objects do not move unless picked.
+struct SeenObject {
+  std::string cls;
+  nlohmann::json centroid_cm;
+};
+
+struct Candidate {
+  size_t index = 0;       // into detections["objects"]
+  std::string cls;        // label or "unknown"
+  std::string place;
+  bool disturbs = false;  // split from a neighbour it touches: lifting it may drag the neighbour along
+  double travel_ms = 0;   // the pick's planned motion from the scan pose (set by the caller after planning)
+};
+
+struct Skip {
+  size_t index = 0;
+  std::string cls;
+  std::string reason;  // infeasible_grip, touching, unknown_class, unreachable, gave_up
+  std::string detail;  // the grip's own reason, the planner's error, the attempts
+};
+
+struct Sorting {
+  std::vector<Candidate> candidates;  // unranked
+  std::vector<Skip> skips;
+  std::map<std::string, int> left;    // classes the recipe does not map, left on the table
+};
+
+// A detection of cls within 1 cm of centroid_cm: the same object (objects lie apart by more than a finger).
+bool same_object(const nlohmann::json& object, const std::string& cls, const nlohmann::json& centroid_cm);
+std::string class_of(const nlohmann::json& object);  // its label, or "unknown"
+
+// The objects of detections under recipe; those matching given_up are skipped ("gave_up").
+Sorting sort_objects(const nlohmann::json& detections, const Recipe& recipe, const std::vector<SeenObject>& given_up);
+// Candidates that disturb no neighbour first, then the shortest planned travel; ties by detection order.
+void rank(std::vector<Candidate>& candidates);
+
+}  // namespace rbx1::daemon
