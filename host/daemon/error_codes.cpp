@@ -12,6 +12,7 @@ const std::vector<ErrorCode> kCodes = {
     {"missing_field", C::Request, "a field the command needs is absent"},
     {"bad_field", C::Request, "a field has the wrong type or is out of range, or is unknown"},
     {"line_too_long", C::Request, "the request line is longer than 4096 bytes"},
+    {"too_large", C::Request, "an MQTT command larger than the interface takes"},
     {"busy", C::Job, "another job is running (or too many subscribers)"},
     {"not_ready", C::Job, "the link is down, the arm is not homed, or a fault waits for clear_fault"},
     {"shutting_down", C::Job, "rbx1d is stopping"},

@@ -229,6 +229,39 @@ class TooManyStreams(Rbx1Error):
     code = "too_many_streams"
 
 
+# ---- the cell's jobs (sort, clear, recipes, history) ---------------------------------------------------------
+
+class BadRecipe(Rbx1Error):
+    """The recipe names a place or a class the arm does not know."""
+    code = "bad_recipe"
+
+
+class UnknownRecipe(Rbx1Error):
+    code = "unknown_recipe"
+
+
+class NoJob(Rbx1Error):
+    """pause, resume or cancel with no sort or clear running."""
+    code = "no_job"
+
+
+class Cancelled(Rbx1Error):
+    code = "cancelled"
+
+
+class HistoryFailed(Rbx1Error):
+    code = "history_failed"
+
+
+class NoImage(Rbx1Error):
+    code = "no_image"
+
+
+class TooLarge(RequestError):
+    """A command over MQTT larger than the interface takes."""
+    code = "too_large"
+
+
 # ---- the client's own ------------------------------------------------------------------------------------------
 
 class NoReply(Rbx1Error, TimeoutError):
