@@ -230,6 +230,11 @@ class Simfw {
 };
 
 
+// A state directory of this test run's own: a Machine opens its history there.
+std::string test_state_dir() {
+  return (std::filesystem::temp_directory_path() / ("rbx1_daemon_test_" + std::to_string(::getpid()))).string();
+}
+
 // Waits up to timeout_ms for the status reply's "job" to satisfy pred.
 template <class Pred>
 bool wait_job(Machine& m, Pred pred, int timeout_ms) {
@@ -273,6 +278,7 @@ TEST(DaemonStartButton, PressRunsTheConfiguredPickOnce) {
   config::Errors errors;
   Overrides o;
   o.port = sim.port();
+  o.state_dir = test_state_dir();  // never the machine's /var/lib/rbx1
   ASSERT_TRUE(load_config(RBX1_DATA_DIR "/rbx1.toml", o, config, errors)) << errors.joined();
   config.daemon.start_pick = "l_shape";
   config.daemon.start_place = "tray";
@@ -333,6 +339,7 @@ TEST(DaemonGpioEstop, EdgeDuringAPickStopsTheArmAndAbortsTheJob) {
   config::Errors errors;
   Overrides o;
   o.port = sim.port();
+  o.state_dir = test_state_dir();  // never the machine's /var/lib/rbx1
   ASSERT_TRUE(load_config(RBX1_DATA_DIR "/rbx1.toml", o, config, errors)) << errors.joined();
   config.gpio.estop.active_low = false;
   config.gpio.estop.debounce_ms = 5;

@@ -2,6 +2,8 @@
 // point: a failed STATUS never leaves an all-zero firmware status behind (issue 8, defect 5).
 #include <thread>
 
+#include <filesystem>
+
 #include <gtest/gtest.h>
 
 #include "daemon_setup.hpp"
@@ -36,6 +38,7 @@ class MachineOnFakePeer : public ::testing::Test {
       config::Errors errors;
       Overrides o;
       o.port = peer_->slave_path();
+      o.state_dir = (std::filesystem::temp_directory_path() / ("rbx1_machine_test_" + std::to_string(::getpid()))).string();
       ASSERT_TRUE(load_config(RBX1_DATA_DIR "/rbx1.toml", o, config_, errors)) << errors.joined();
       config_.link.timeout_ms = 100;  // a dead line is declared down in 0.3 s, not 0.6 s
       config_.link.retries = 2;
