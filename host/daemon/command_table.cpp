@@ -64,7 +64,8 @@ void write_calibrate(const Request& r, nlohmann::json& j) {
 constexpr const char* kTopicNames = "status|events|scans";
 
 using F = FieldType;
-const std::vector<CommandSpec> kTable = {
+// Never destroyed: a detached thread's reply may still name its command while the process exits.
+const std::vector<CommandSpec>& kTable = *new std::vector<CommandSpec>{
     {Command::Status, "status", Access::Read, Mode::Immediate, "the arm's state: ready, job, link, joints, calibration", {}},
     {Command::Scan, "scan", Access::Act, Mode::Job, "move to the scan pose, capture, detect; the paper's report", {}},
     {Command::Pick, "pick", Access::Act, Mode::Job, "pick the named object and put it at a place",
