@@ -134,15 +134,6 @@ std::vector<std::string> split_choices(const char* choices) {
   return out;
 }
 
-bool valid_name(const nlohmann::json& v) {
-  if (!v.is_string()) return false;
-  const auto& s = v.get_ref<const std::string&>();
-  if (s.empty() || s.size() > 64) return false;
-  for (unsigned char c : s)
-    if (c < 0x20 || c == 0x7f) return false;
-  return true;
-}
-
 std::string range_text(const Field& f) {
   auto num = [](double v) {
     std::string s = std::to_string(v);
@@ -240,6 +231,15 @@ const char* type_name(FieldType t) {
 }
 
 }  // namespace
+
+bool valid_name(const nlohmann::json& v) {
+  if (!v.is_string()) return false;
+  const auto& s = v.get_ref<const std::string&>();
+  if (s.empty() || s.size() > 64) return false;
+  for (unsigned char c : s)
+    if (c < 0x20 || c == 0x7f) return false;
+  return true;
+}
 
 const std::vector<CommandSpec>& command_table() { return kTable; }
 

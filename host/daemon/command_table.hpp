@@ -58,6 +58,8 @@ struct CommandSpec {
   void (*write)(const Request& r, nlohmann::json& out) = nullptr;
 };
 
+// A FieldType::Name value: a non-empty string of at most 64 printable characters.
+bool valid_name(const nlohmann::json& v);
 const std::vector<CommandSpec>& command_table();
 // Checks a request object's fields against spec and stores them in out (out.command already set); false with error.
 bool parse_fields(const CommandSpec& spec, const nlohmann::json& request, Request& out, Error& error);

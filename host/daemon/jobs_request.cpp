@@ -2,6 +2,8 @@
 // name or a map of class to place names; a saved recipe is a map (recipes.hpp checks places and classes when run).
 #include "jobs_request.hpp"
 
+#include "command_table.hpp"
+
 namespace rbx1::daemon {
 
 namespace {
@@ -11,19 +13,10 @@ bool bad(Error& error, const std::string& message) {
   return false;
 }
 
-bool printable(const nlohmann::json& v) {
-  if (!v.is_string()) return false;
-  const auto& s = v.get_ref<const std::string&>();
-  if (s.empty() || s.size() > 64) return false;
-  for (unsigned char c : s)
-    if (c < 0x20 || c == 0x7f) return false;
-  return true;
-}
-
 bool recipe_map(const nlohmann::json& r) {
   if (!r.is_object() || r.empty()) return false;
   for (const auto& [cls, place] : r.items())
-    if (!printable(nlohmann::json(cls)) || !printable(place)) return false;
+    if (!valid_name(nlohmann::json(cls)) || !valid_name(place)) return false;
   return true;
 }
 
@@ -32,7 +25,7 @@ constexpr const char* kMapForm = "an object of class to place, e.g. {\"bolt\": \
 }  // namespace
 
 bool check_sort_request(const nlohmann::json&, Request& out, Error& error) {
-  if (printable(out.recipe) || recipe_map(out.recipe)) return true;
+  if (valid_name(out.recipe) || recipe_map(out.recipe)) return true;
   return bad(error, std::string("\"recipe\" must be a saved recipe's name or ") + kMapForm);
 }
 
