@@ -136,7 +136,8 @@ def daemon_ready_seconds(board):
     sock = str(board.log.parent / "rbx1d.sock")
     t0 = time.monotonic()
     daemon = subprocess.Popen([os.path.join(BIN, "rbx1d"), "--config", os.path.join(SRC, "data", "rbx1.toml"),
-                               "--port", board.port, "--socket", sock, "--console", "127.0.0.1:0"],
+                               "--port", board.port, "--socket", sock, "--console", "127.0.0.1:0",
+                               "--state-dir", str(board.log.parent / "state")],  # never the machine's /var/lib/rbx1
                               stdout=subprocess.DEVNULL,
                               stderr=subprocess.PIPE, text=True)
     try:

@@ -156,7 +156,8 @@ def daemon_link_error(port, tmp_path):
     daemon's stderr after a clean exit)."""
     sock = str(tmp_path / "rbx1d.sock")
     daemon = subprocess.Popen([os.path.join(BIN, "rbx1d"), "--config", os.path.join(SRC, "data", "rbx1.toml"),
-                               "--port", port, "--socket", sock, "--console", "127.0.0.1:0"],
+                               "--port", port, "--socket", sock, "--console", "127.0.0.1:0",
+                               "--state-dir", str(tmp_path / "state")],  # never the machine's /var/lib/rbx1
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
         link = {}
