@@ -81,15 +81,31 @@ def test_a_subscriber_sees_a_cli_pick_whole_and_the_status_it_changes(sim, daemo
 
 def test_watch_prints_readable_lines(sim, daemon_factory):
     d = daemon_factory(sim.port)
-    watch = subprocess.Popen([e2e.need(e2e.BIN / "rbx1"), "watch", "--topics", "events", "--socket", d.socket],
+    watch = subprocess.Popen([e2e.need(e2e.BIN / "rbx1"), "watch", "--topics", "status,events", "--socket", d.socket],
                              stdout=subprocess.PIPE, text=True)
+    lines = []
+
+    def read():
+        for line in watch.stdout:
+            lines.append(line)
+
+    reader = threading.Thread(target=read, daemon=True)
+
+    def seen(text, timeout=60):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline and not any(text in line for line in lines):
+            time.sleep(0.05)
+        return any(text in line for line in lines)
+
+    reader.start()
     try:
-        time.sleep(0.5)
+        assert seen("status  "), "no status line: the subscription never started"  # the last status comes first
         assert "result" in d.request({"cmd": "home"})[1]
-        time.sleep(0.5)
+        assert seen("home  result"), lines
     finally:
         watch.terminate()
-        out = watch.communicate(timeout=10)[0]
+        watch.wait(timeout=10)
+    out = "".join(lines)
     assert "events  #" in out and "home  request" in out and "home  result" in out, out
 
 
