@@ -30,8 +30,11 @@ def pick(d, name, on_event=None):
 
 
 def test_restarted_daemon_stops_the_dead_daemons_queue(tmp_path, sim, daemon_factory):
-    set_heartbeat(sim.port, 5000)
-    d1 = daemon_factory(sim.port)
+    set_heartbeat(sim.port, 30000)
+    # The dead daemon's arm moves slowly, so that its queued entries outlast a slow restart of the next daemon.
+    slow = fast_config()
+    slow["arm"]["speeds"]["joint_speed_deg_s"] = e2e.FAST_DEG_S / 6
+    d1 = daemon_factory(sim.port, slow)
     old_events = []
     killed = threading.Event()
 
