@@ -110,14 +110,15 @@ void Ros2Bridge::publish_joints(const Stamp& stamp) {
 void Ros2Bridge::run() {
   const auto fast = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / config_.joint_states_hz));
   Clock::time_point last_pub{};
-  bool fresh = false;  // joints_ is a reading not written yet
+  bool fresh = false;  // joints_ is a new position not written yet
   while (!sub_->closed()) {
-    // A new reading goes out once the rate allows; when none came for a second, the last one again.
+    // A new position goes out once the rate allows; when none came for a second, the last one again, stamped with
+    // its newest reading, or when written if there was none since (the position still holds; tf2 drops repeated
+    // stamps).
     auto now = Clock::now();
     auto due = last_pub + (fresh ? fast : kRestPeriod);
     if (have_joints_ && now >= due) {
-      // A repeat is stamped when written: the position still holds, and tf2 drops repeated stamps.
-      publish_joints(fresh ? reading_ : now_stamp());
+      publish_joints(later(reading_, last_stamp_) ? reading_ : now_stamp());
       fresh = false;
       last_pub = now;
       continue;
@@ -137,11 +138,11 @@ void Ros2Bridge::run() {
     Stamp read = reading_stamp(*m.body);
     // A reading no newer than what was written (a repeat went out while it crossed the bus) says nothing new.
     if (have_joints_ && !later(read, last_stamp_)) continue;
+    fresh = fresh || !have_joints_ || js.positions != joints_.positions;
     joints_ = std::move(js);
     tool_ = tp;
     reading_ = read;
     have_joints_ = true;
-    fresh = true;
   }
 }
 

@@ -82,7 +82,9 @@ def wait_drawn_is_status(drv, url, msg):
 def shot(drv, name):
     """A screenshot of the 3D view alone (build/e2e/arm3d/NAME), as a BGR image."""
     path = SHOTS / name
-    drv.find_element(By.ID, "arm3d").find_element(By.TAG_NAME, "canvas").screenshot(str(path))
+    canvas = drv.find_element(By.ID, "arm3d").find_element(By.TAG_NAME, "canvas")
+    drv.execute_script("arguments[0].scrollIntoView({block: 'end'})", canvas)  # whole, clear of the sticky header
+    canvas.screenshot(str(path))
     return cv2.imread(str(path))
 
 
@@ -132,10 +134,11 @@ def test_the_drawn_arm_follows_a_jog_from_the_page(rig, browser):
     assert len(xs) > 500, "the jog changed almost nothing in the picture"
     # The change is where the arm is: the tool point's old and new places lie in it, the table's far corners not.
     assert np.hypot(tool_a[0] - tool_b[0], tool_a[1] - tool_b[1]) > 20
+    h, w = changed.shape
     for x, y in (tool_a, tool_b):
+        assert 0 <= x < w and 0 <= y < h, f"the tool point is drawn off the view, at ({x:.0f}, {y:.0f})"
         near = changed[max(0, int(y) - 12):int(y) + 12, max(0, int(x) - 12):int(x) + 12]
         assert near.any(), f"nothing changed near the tool point drawn at ({x:.0f}, {y:.0f})"
-    h, w = changed.shape
     assert not changed[:h // 8, :w // 8].any() and not changed[-h // 8:, -w // 8:].any()
     e2e.ok(rig[1], {"cmd": "home"})
 
@@ -143,7 +146,7 @@ def test_the_drawn_arm_follows_a_jog_from_the_page(rig, browser):
 def test_scan_objects_view_and_the_planned_path(rig, browser):
     cfg, d, url = rig
     arm = cfg["arm"]
-    browser.find_element(By.ID, "scan").click()
+    browser.execute_script("arguments[0].click()", browser.find_element(By.ID, "scan"))  # under the sticky header
     wait(browser, lambda dr: int(dr.execute_script("return document.getElementById('arm3d').dataset.objects || 0")) > 0,
          60, "the scan's objects never appeared in the 3D view")
     scene = api(url, "/api/scene")["result"]
@@ -179,8 +182,9 @@ def test_scan_objects_view_and_the_planned_path(rig, browser):
         if wp["kind"] == "move":
             (x, y, z), _, _ = e2e.tool_pose(arm, wp["target"])
             assert wp["tool_mm"] == pytest.approx([x, y, z], abs=0.01)
-    # Drawn before the first move ended (the firmware's step_done of the pick's first move).
-    first_done = next(e for e in reply["events"] if e.get("event") == "step_done")
+    # Drawn before the plan's first move ended (the firmware's first step_done after the planned event).
+    after = reply["events"][reply["events"].index(planned):]
+    first_done = next(e for e in after if e.get("event") == "step_done")
     done_ms = datetime.fromisoformat(first_done["ts"].replace("Z", "+00:00")).timestamp() * 1000
     drawn_ms = browser.execute_script("return arm3d.path_drawn_ms")
     assert drawn_ms < done_ms, (drawn_ms, first_done["ts"])

@@ -106,10 +106,17 @@ def test_joint_states_during_a_pick_are_the_firmware_positions(tmp_path, sim, da
     d = daemon_factory(sim.port, cfg)
     sub = Subscriber(tmp_path, dds, ns, "joint_states", "tool_pose", seconds=120)
     # The bus's status lines (the socket's subscribe): each firmware reading with the time the daemon read it.
-    watch = rbx1.Arm(socket=d.socket).watch(topics=("status",))
-    readings = {}
-    threading.Thread(target=lambda: [readings.setdefault(s["firmware"]["read_at_ns"], s["firmware"]["position"])
-                                     for s in watch if s.get("firmware")], daemon=True).start()
+    readings, stop = {}, threading.Event()
+
+    def watch_status():
+        with rbx1.Arm(socket=d.socket).watch(topics=("status",)) as watch:
+            for s in watch:  # a status at least every 2 s
+                if s.get("firmware"):
+                    readings[s["firmware"]["read_at_ns"]] = s["firmware"]["position"]
+                if stop.is_set():
+                    return
+    watcher = threading.Thread(target=watch_status, daemon=True)
+    watcher.start()
     try:
         sub.wait("joint_states", 2, timeout=10)  # at rest: 1 Hz
         label = e2e.scene_labels()[0]
@@ -122,7 +129,8 @@ def test_joint_states_during_a_pick_are_the_firmware_positions(tmp_path, sim, da
         samples = sub.samples("joint_states")
     finally:
         sub.stop()
-        watch.close()
+        stop.set()
+        watcher.join(5)
     names = samples[0]["sample"]["name"]
     assert names == ["joint_1", "joint_2", "joint_3", "joint_4", "joint_5", "joint_6", "finger_left_joint"]
     positions = []

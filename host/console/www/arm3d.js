@@ -24,15 +24,17 @@
   box.appendChild(renderer.domElement);
   const scene = new T.Scene();
   scene.background = new T.Color(0xf3f4f6);
-  scene.add(new T.HemisphereLight(0xffffff, 0x8a8070, 0.9));
+  const sky = new T.HemisphereLight(0xffffff, 0x8a8070, 0.9);
+  sky.position.set(0, 0, 1);  // the sky above: +z
+  scene.add(sky);
   const sun = new T.DirectionalLight(0xffffff, 0.6);
   sun.position.set(1, -1.5, 2);
   scene.add(sun);
   const camera = new T.PerspectiveCamera(40, 1, 0.01, 20);
   camera.up.set(0, 0, 1);
-  camera.position.set(1.1, -1.0, 0.8);
+  camera.position.set(1.45, -1.35, 1.0);  // the whole arm straight up (0.82 m) and the table in view
   const controls = new T.OrbitControls(camera, renderer.domElement);
-  controls.target.set(0.2, 0, 0.2);
+  controls.target.set(0.15, 0, 0.32);
   controls.update();
   const world = new T.Group();  // table, places, camera view, objects: rebuilt with each scene
   const path = new T.Group();   // the planned tool path
@@ -179,7 +181,7 @@
   }
   function flatBox(x, y, z, w, l, h, yawDeg, colour, opacity) {
     const mesh = new T.Mesh(new T.BoxBufferGeometry(m(w), m(l), m(h)),
-                            new T.MeshStandardMaterial({ color: colour, transparent: opacity < 1, opacity }));
+                            new T.MeshLambertMaterial({ color: colour, transparent: opacity < 1, opacity }));
     mesh.position.set(m(x), m(y), m(z + h / 2));
     mesh.rotation.z = yawDeg * Math.PI / 180;
     return mesh;
