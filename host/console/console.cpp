@@ -62,7 +62,17 @@ int http_status_for(const json& final_line) {
   return 409;  // the arm could not do it now (busy, not_ready, estop, object_absent, ...)
 }
 
-constexpr const char* kChartJs = "/usr/share/javascript/chart.js/chart.min.js";
+// Libraries the pages use, from Debian's packages on the disk: never fetched from a network.
+struct DebianJs {
+  const char* url;
+  const char* path;
+  const char* package;
+};
+constexpr DebianJs kDebianJs[] = {
+    {"/chart.js", "/usr/share/javascript/chart.js/chart.min.js", "libjs-chart.js"},  // the history page
+    {"/three.js", "/usr/share/javascript/three/three.min.js", "libjs-three"},      // the 3D view
+    {"/three-orbit.js", "/usr/share/javascript/three/examples/js/controls/OrbitControls.js", "libjs-three"},
+};
 
 std::string read_file(const char* path) {
   std::ifstream f(path, std::ios::binary);
@@ -207,8 +217,7 @@ struct Console::Impl {
       send_json(res, 403, error_json("not_allowed", std::string(spec.name) + " is not available from the console (the Unix socket only)"));
       return;
     }
-    if (spec.mode == daemon::Mode::Immediate && spec.access == daemon::Access::Read && request.command != daemon::Command::Status &&
-        request.command != daemon::Command::History) {
+    if (request.command == daemon::Command::Subscribe) {
       send_json(res, 400, error_json("bad_request", std::string(spec.name) + ": use GET /api/events for the bus"));
       return;
     }
@@ -340,12 +349,17 @@ struct Console::Impl {
     http.Get("/api/info", [this](const httplib::Request& req, httplib::Response& res) {
       if (allowed(req, res, Kind::Read)) send_json(res, 200, info);
     });
-    // Chart.js for the history page: Debian's libjs-chart.js from the disk, never fetched from a network.
-    http.Get("/chart.js", [](const httplib::Request&, httplib::Response& res) {
-      static const std::string js = read_file(kChartJs);
-      if (js.empty()) return send_json(res, 404, error_json("not_found", std::string(kChartJs) + ": missing (apt install libjs-chart.js)"));
-      res.set_header("Cache-Control", "max-age=86400");
-      res.set_content(js, "text/javascript; charset=utf-8");
+    for (const DebianJs& lib : kDebianJs)
+      http.Get(lib.url, [&lib](const httplib::Request&, httplib::Response& res) {
+        std::string js = read_file(lib.path);  // the page caches it a day
+        if (js.empty())
+          return send_json(res, 404, error_json("not_found", std::string(lib.path) + ": missing (apt install " + lib.package + ")"));
+        res.set_header("Cache-Control", "max-age=86400");
+        res.set_content(js, "text/javascript; charset=utf-8");
+      });
+    // The 3D view's world (the scene request): the URDF, table, places, camera view, the last scan's objects.
+    http.Get("/api/scene", [this](const httplib::Request& req, httplib::Response& res) {
+      if (allowed(req, res, Kind::Read)) run_request(R"({"cmd":"scene"})", res);
     });
     // A pick's scan as the history kept it (404 no_image once the image budget removed it).
     http.Get(R"(/api/history/scan/(\d{1,18})\.jpg)", [this](const httplib::Request& req, httplib::Response& res) {
@@ -422,16 +436,19 @@ struct Console::Impl {
       if (!last.empty() && last.size() < 20 && last.find_first_not_of("0123456789") == std::string::npos)
         after = std::stoull(last);
       auto cursor = std::make_shared<uint64_t>(after);
+      auto status_seen = std::make_shared<uint64_t>(0);
       std::string page = req.get_param_value("page");
       auto page_stream = valid_page_id(page) ? std::make_shared<PageStream>(*this, page) : nullptr;
       res.set_header("Cache-Control", "no-store");
-      res.set_chunked_content_provider("text/event-stream", [this, slot, cursor, page_stream](size_t, httplib::DataSink& sink) {
-        auto events = hub.wait(*cursor, page_stream ? kEventKeepAlive : kStreamPoll);
+      res.set_chunked_content_provider("text/event-stream", [this, slot, cursor, status_seen, page_stream](size_t, httplib::DataSink& sink) {
+        std::string status;
+        auto events = hub.wait(*cursor, *status_seen, status, page_stream ? kEventKeepAlive : kStreamPoll);
         if (hub.closed()) {
           sink.done();
           return true;
         }
-        std::string out;
+        // The arm's status as a named event: the log's onmessage never sees it, and it has no id (no replay).
+        std::string out = status.empty() ? "" : "event: status\ndata: " + status + "\n\n";
         for (const auto& e : events) {
           out += "id: " + std::to_string(e.seq) + "\ndata: " + e.data + "\n\n";
           *cursor = e.seq;
@@ -448,7 +465,7 @@ Console::Console(ConsoleConfig config, Submit submit, daemon::Bus& bus, camera::
     : impl_(std::make_unique<Impl>(std::move(config), std::move(submit), camera, job_timeout_s)) {
   impl_->info = std::move(info);
   impl_->info["commands"] = known_commands();
-  impl_->bus_events = bus.subscribe(unsigned(daemon::Topic::Events), 1024);
+  impl_->bus_events = bus.subscribe(unsigned(daemon::Topic::Events) | unsigned(daemon::Topic::Status), 1024);
 }
 
 Console::~Console() { stop(); }
@@ -490,7 +507,8 @@ int Console::start(std::string& error) {
         json e = *msg.body;
         e.erase("topic");
         e.erase("seq");
-        m.hub.publish(std::move(e));
+        if (msg.topic == daemon::Topic::Status) m.hub.set_status(e);
+        else m.hub.publish(std::move(e));
       }
   });
   // httplib's stop() shuts only a listener already running: a stop right after start would be lost and the join in

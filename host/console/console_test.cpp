@@ -5,6 +5,8 @@
 #include <httplib.h>
 
 #include <algorithm>
+#include <fstream>
+#include <iterator>
 #include <thread>
 
 #include "access.hpp"
@@ -133,6 +135,25 @@ TEST(EventHub, OrderedRingAndWaiters) {
   EXPECT_EQ(next[0].seq, 6u);
   hub.close();
   EXPECT_TRUE(hub.wait(0, std::chrono::seconds(5)).empty());
+}
+
+TEST(EventHub, TheLatestStatusBesideTheRing) {
+  EventHub hub(3);
+  uint64_t seen = 0;
+  std::string status;
+  EXPECT_TRUE(hub.wait(0, seen, status, std::chrono::milliseconds(10)).empty());
+  EXPECT_EQ(status, "");
+  hub.set_status({{"n", 1}});
+  hub.set_status({{"n", 2}});
+  EXPECT_TRUE(hub.wait(0, seen, status, std::chrono::seconds(5)).empty());
+  EXPECT_EQ(status, R"({"n":2})");  // only the newest is kept
+  EXPECT_TRUE(hub.wait(0, seen, status, std::chrono::milliseconds(10)).empty());
+  EXPECT_EQ(status, "");              // nothing new since
+  EXPECT_EQ(hub.last_seq(), 0u);      // not an event of the log
+  std::thread t([&] { hub.set_status({{"n", 3}}); });
+  hub.wait(0, seen, status, std::chrono::seconds(5));  // a waiter wakes for a new status
+  t.join();
+  EXPECT_EQ(status, R"({"n":3})");
 }
 
 // ---- the HTTP layer against a recording handler ----------------------------------------------------------------
@@ -304,6 +325,39 @@ TEST(ConsoleHttp, PageImagesAndEvents) {
   EXPECT_LT(scan, req);
   EXPECT_LT(req, ev);
   EXPECT_LT(ev, res);
+}
+
+// The 3D view's parts: its files, three.js from Debian's libjs-three on the disk, the scene request, and the arm's
+// status on the event stream as a named event (which the log's onmessage never sees).
+TEST(ConsoleHttp, ThreeDViewPartsAndTheStatusOnTheEventStream) {
+  Fixture f("");
+  EXPECT_EQ(f.client->Get("/arm3d.js")->status, 200);
+  EXPECT_EQ(f.client->Get("/arm3d.css")->status, 200);
+  const char* const files[][2] = {
+      {"/three.js", "/usr/share/javascript/three/three.min.js"},
+      {"/three-orbit.js", "/usr/share/javascript/three/examples/js/controls/OrbitControls.js"}};
+  for (const auto& [url, path] : files) {
+    std::ifstream in(path, std::ios::binary);
+    std::string debian((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ASSERT_FALSE(debian.empty()) << path << " missing: apt install libjs-three (tools/install-deps)";
+    auto r = f.client->Get(url);
+    ASSERT_EQ(r->status, 200) << url;
+    EXPECT_EQ(r->body, debian) << url;
+  }
+  auto r = f.client->Get("/api/scene");
+  ASSERT_EQ(r->status, 200) << r->body;
+  EXPECT_EQ(body(r)["result"]["cmd"], "scene");
+  f.bus.publish(rbx1::daemon::Topic::Status, {{"joints_deg", {1, 2, 3, 4, 5, 6}}});
+  std::string stream;
+  httplib::Client sse("127.0.0.1", f.console->port());
+  const std::string want = "event: status\ndata: {\"joints_deg\":[1,2,3,4,5,6]}\n\n";
+  sse.Get("/api/events", [&](const char* data, size_t n) {
+    stream.append(data, n);
+    return stream.find(want) == std::string::npos;
+  });
+  size_t at = stream.find(want);
+  ASSERT_NE(at, std::string::npos) << stream;
+  EXPECT_TRUE(at == 0 || stream.compare(at - 2, 2, "\n\n") == 0) << "a status has no id (no replay): " << stream;
 }
 
 TEST(ConsoleHttp, NonLoopbackReadsNeedTheToken) {

@@ -3,6 +3,7 @@
 
 #include "command_table.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -16,6 +17,7 @@
 #include "board_limits.hpp"
 #include "joint_steps.hpp"
 #include "pick_plan.hpp"
+#include "scene.hpp"
 
 namespace rbx1::daemon {
 
@@ -116,21 +118,29 @@ int Machine::start(std::string& error) {
 
 void Machine::publish_status() {
   constexpr auto kPoll = std::chrono::milliseconds(100);
+  // A new position goes out as soon as it is read, but no more often than this (status_poll_ms may be 5 ms).
+  constexpr auto kMinGap = std::chrono::milliseconds(20);
   constexpr auto kEvery = std::chrono::milliseconds(BusStreams::kStatusEveryMs);
   nlohmann::json last;
   auto sent = Clock::now();
   std::unique_lock lock(mutex_);
   while (!stopping_) {
+    status_news_ = false;
     lock.unlock();
     nlohmann::json now = status_reply();
-    if (now != last || Clock::now() - sent >= kEvery) {
-      last = now;
+    // The read time alone is no change: at rest it would put a status on the bus every poll.
+    nlohmann::json compared = now;
+    if (compared["firmware"].is_object()) compared["firmware"].erase("read_at_ns");
+    if (compared != last || Clock::now() - sent >= kEvery) {
+      last = std::move(compared);
       sent = Clock::now();
       now["ts"] = iso_now();
       bus_.publish(Topic::Status, std::move(now));
     }
     lock.lock();
-    status_cv_.wait_for(lock, kPoll, [this] { return stopping_; });
+    status_cv_.wait_for(lock, kPoll, [this] { return stopping_ || status_news_; });
+    if (!stopping_ && Clock::now() - sent < kMinGap)
+      status_cv_.wait_until(lock, sent + kMinGap, [this] { return stopping_; });
   }
 }
 
@@ -203,6 +213,9 @@ void Machine::handle(const Request& request, std::shared_ptr<Reply> reply) {
   switch (request.command) {
     case Command::Status:
       reply->result(status_reply());
+      return;
+    case Command::Scene:
+      reply->result(scene_reply());
       return;
     case Command::Subscribe: {
       unsigned topics = 0;
@@ -300,6 +313,7 @@ nlohmann::json Machine::status_reply() {
     j["link"]["firmware"] = std::to_string(fw.fw_major) + "." + std::to_string(fw.fw_minor) + "." + std::to_string(fw.fw_patch);
   }
   j["firmware"] = last_status_ ? status_json(*last_status_) : nlohmann::json(nullptr);
+  if (last_status_) j["firmware"]["read_at_ns"] = last_status_read_ns_;
   if (last_status_) {
     arm::Steps steps;
     for (int i = 0; i < RBX1_JOINTS; ++i) steps[i] = last_status_->position[i];
@@ -316,9 +330,32 @@ nlohmann::json Machine::status_reply() {
   return j;
 }
 
+nlohmann::json Machine::scene_reply() {
+  arm::ArmConfig arm;
+  nlohmann::json detections;
+  {
+    std::lock_guard lock(mutex_);  // place_save, pose_save and the workspace calibration change them
+    arm = config_.arm;
+    detections = last_detections_;
+  }
+  return scene_json(arm, detections);
+}
+
 void Machine::note_status(const rbx1_status_resp& s) {
   std::lock_guard lock(mutex_);
+  set_last_status(s);
+}
+
+void Machine::set_last_status(const rbx1_status_resp& s) {
+  last_status_read_ns_ = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                             std::chrono::system_clock::now().time_since_epoch()).count();
+  bool moved = !last_status_ || !std::equal(s.position, s.position + RBX1_JOINTS, last_status_->position) ||
+               s.gripper_us != last_status_->gripper_us;
   last_status_ = s;
+  if (moved) {
+    status_news_ = true;
+    status_cv_.notify_all();
+  }
 }
 
 // ---- the worker ----------------------------------------------------------------------------------------------
@@ -351,7 +388,7 @@ bool Machine::prepare(std::string& error) {
     // reset (power, watchdog, another board on the port): declaring the home pose again is the operator's call.
     std::lock_guard lock(mutex_);
     bool back = last_status_ && counters_went_back(*last_status_, st);
-    last_status_ = st;
+    set_last_status(st);
     if (session_ && (st.homed != RBX1_ALL_JOINTS_MASK || back)) {
       hold(back ? "the firmware's counters went back (reset?)" : "the firmware lost its joint positions (reset?)");
       error = link_error_;
@@ -486,7 +523,7 @@ void Machine::worker() {
         // daemon. Declaring the home pose again is the operator's call, not ours.
         std::lock_guard relock(mutex_);
         bool back = last_status_ && counters_went_back(*last_status_, st);
-        last_status_ = st;
+        set_last_status(st);
         if (session_ && !hold_ && (st.homed != RBX1_ALL_JOINTS_MASK || back))
           hold(back ? "the firmware's counters went back (reset?)" : "the firmware lost its joint positions (reset?)");
         set_led(prepared_ && st.state != RBX1_STATE_FAULT);  // lit exactly while status says ready
@@ -656,6 +693,10 @@ bool Machine::capture_and_detect(Reply& reply, nlohmann::json& detections, std::
     else spdlog::warn("annotate: {}: cannot write the annotated image {}", config_.daemon.annotate, aerr);
   }
   last_annotated_ = vision::annotate(processed, det, vision_->calibrated());  // also the history's scan image
+  {
+    std::lock_guard lock(mutex_);  // before the console hears of the scan: its 3D view asks for the scene then
+    last_detections_ = detections;
+  }
   if (on_scan_) on_scan_(last_annotated_, detections);  // before the event
   bus_.publish(Topic::Scans, {{"ts", iso_now()}, {"detections", detections}});
   reply.event("detected", ev);

@@ -111,7 +111,12 @@ class Machine {
   MotionHooks hooks(Reply& reply);
   nlohmann::json status_reply();
   void note_status(const rbx1_status_resp& s);
+  // Under mutex_: the STATUS just read becomes last_status_, with the time it was read; a new position wakes the
+  // status thread, which publishes it at once (the bus's and DDS's joints stamped with that time).
+  void set_last_status(const rbx1_status_resp& s);
   void publish_status();  // status thread: the status on the bus when it changed, and at least every 2 s
+  // The `scene` request: the arm's world for a 3D view (scene.hpp).
+  nlohmann::json scene_reply();
 
   Bus bus_;  // before everything that publishes on it
   BusStreams streams_{bus_};
@@ -148,6 +153,9 @@ class Machine {
   bool session_ = false;            // this daemon prepared the firmware: a later reset of it is a hold, not a fresh start
   std::string link_error_;          // why the link is not ready
   std::optional<rbx1_status_resp> last_status_;
+  int64_t last_status_read_ns_ = 0;  // Unix time (ns) last_status_ was read from the firmware
+  bool status_news_ = false;        // a new position for the status thread to publish
+  nlohmann::json last_detections_;  // the last scan's detections (the scene's objects)
   std::mutex estop_mu_;             // guards last_estop_ only (taken before the ESTOP frame: never held long)
   std::string last_estop_;          // source of the last e-stop
   std::atomic<bool> abort_{false};

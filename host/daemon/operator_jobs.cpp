@@ -155,7 +155,10 @@ void Machine::job_pose_save(Reply& reply) {
     reply.error("state_failed", error);
     return;
   }
-  config_.arm.scan = deg;
+  {
+    std::lock_guard lock(mutex_);  // the scene request reads the arm's config
+    config_.arm.scan = deg;
+  }
   nlohmann::json r{{"pose", "scan"}, {"joints_deg", joints_json(deg)}, {"position", cur},
                    {"tool", tool_json(arm::tool_pose(config_.arm.links, deg))}, {"saved", state_->path(kPosesFile)}};
   if (config_.arm.camera.pixel_map)

@@ -3,6 +3,7 @@
 
 #include <cmath>
 
+#include "kinematics.hpp"
 #include "pick.hpp"
 #include "vision_map.hpp"
 
@@ -87,6 +88,9 @@ bool plan_pick_steps(const arm::ArmConfig& cfg, const rbx1_status_resp& current,
     } else {
       j["target"] = w.steps;
       j["duration_ms"] = w.duration_ms;
+      // Where the tool point will be (the console draws the planned path before it runs).
+      Eigen::Vector3d tool = arm::fk(cfg.links, w.joints).translation();
+      j["tool_mm"] = {round2(tool.x()), round2(tool.y()), round2(tool.z())};
     }
     wj.push_back(j);
   }

@@ -20,6 +20,7 @@ enum class Command {
   // The operator's commands (host/daemon/README.md "Operator commands").
   Jog, PoseSave, PlaceSave, Background, Teach, CalibrateWorkspace,
   Subscribe,
+  Scene,  // the console's 3D view (scene.hpp)
   // The cell's jobs and their control (sort_jobs.cpp; jobs_request.cpp checks the recipe).
   Sort, Clear, RecipeSave, History, Pause, Resume, Cancel,
 };

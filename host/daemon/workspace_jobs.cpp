@@ -193,11 +193,11 @@ void Machine::job_calibrate_workspace(Reply& reply, const Request& r) {
     for (int k = 0; k < 3; ++k) m.h[i * 3 + k] = fit.h(i, k);
   m.width = s.image_size.width;
   m.height = s.image_size.height;
-  config_.arm.camera.pixel_map = m;
-  config_.arm.heights.table_z_mm = table_z;
   workspace_.reset();
   {
-    std::lock_guard lock(mutex_);
+    std::lock_guard lock(mutex_);  // the scene request reads the arm's config
+    config_.arm.camera.pixel_map = m;
+    config_.arm.heights.table_z_mm = table_z;
     calibration_ = calibration_summary(&w);
   }
   spdlog::info("workspace calibration saved: {} over {} markers, RMS {:.3f} mm, worst leave-one-out {:.3f} mm, table "

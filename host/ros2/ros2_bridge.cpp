@@ -1,5 +1,6 @@
-// ros2_bridge.cpp - the bus to DDS: status -> joint_states + tool_pose at joint_states_hz while moving, 1 Hz at
-// rest; scans -> detections; the URDF once at start.
+// ros2_bridge.cpp - the bus to DDS: status -> joint_states + tool_pose, each new firmware reading stamped with
+// the time it was read (at most joint_states_hz), the last one repeated every second without one; scans ->
+// detections; the URDF once at start.
 #include "ros2_bridge.hpp"
 
 #include <chrono>
@@ -17,9 +18,15 @@ namespace {
 using Clock = std::chrono::steady_clock;
 constexpr double kPi = 3.14159265358979323846;
 constexpr auto kRestPeriod = std::chrono::seconds(1);
-// After the last change of position the arm counts as moving this long (a status may repeat within a move).
-constexpr auto kMovingHold = std::chrono::seconds(1);
+bool later(const Stamp& a, const Stamp& b) { return a.sec != b.sec ? a.sec > b.sec : a.nanosec > b.nanosec; }
 }  // namespace
+
+Stamp reading_stamp(const nlohmann::json& status) {
+  const nlohmann::json& fw = status.contains("firmware") ? status["firmware"] : nlohmann::json();
+  if (!fw.is_object() || !fw.contains("read_at_ns") || !fw["read_at_ns"].is_number_integer()) return now_stamp();
+  int64_t ns = fw["read_at_ns"].get<int64_t>();
+  return Stamp{int32_t(ns / 1000000000), uint32_t(ns % 1000000000)};
+}
 
 bool joint_sample_from_status(const arm::ArmConfig& arm, const nlohmann::json& status, JointSample& joints,
                               ToolPoseSample& tool) {
@@ -91,11 +98,10 @@ void Ros2Bridge::stop() {
   writers_.close();
 }
 
-void Ros2Bridge::publish_joints() {
-  // Stamped when written: a repeat at rest is the current state, and tf2 drops repeated stamps.
-  stamp_ = now_stamp();
-  bool ok = writers_.write_joint_states(stamp_, joints_) >= 0;
-  ok = writers_.write_tool_pose(stamp_, tool_) >= 0 && ok;
+void Ros2Bridge::publish_joints(const Stamp& stamp) {
+  bool ok = writers_.write_joint_states(stamp, joints_) >= 0;
+  ok = writers_.write_tool_pose(stamp, tool_) >= 0 && ok;
+  last_stamp_ = stamp;
   ++counts_.joint_states;
   ++counts_.tool_poses;
   if (!ok) ++counts_.write_errors;
@@ -103,14 +109,17 @@ void Ros2Bridge::publish_joints() {
 
 void Ros2Bridge::run() {
   const auto fast = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / config_.joint_states_hz));
-  Clock::time_point last_pub{}, last_change{};
-  bool job = false;
+  Clock::time_point last_pub{};
+  bool fresh = false;  // joints_ is a new position not written yet
   while (!sub_->closed()) {
+    // A new position goes out once the rate allows; when none came for a second, the last one again, stamped with
+    // its newest reading, or when written if there was none since (the position still holds; tf2 drops repeated
+    // stamps).
     auto now = Clock::now();
-    bool moving = job || now - last_change < kMovingHold;
-    auto due = last_pub + (moving ? fast : kRestPeriod);
+    auto due = last_pub + (fresh ? fast : kRestPeriod);
     if (have_joints_ && now >= due) {
-      publish_joints();
+      publish_joints(later(reading_, last_stamp_) ? reading_ : now_stamp());
+      fresh = false;
       last_pub = now;
       continue;
     }
@@ -125,20 +134,15 @@ void Ros2Bridge::run() {
     }
     JointSample js;
     ToolPoseSample tp;
-    job = m.body->contains("job") && !(*m.body)["job"].is_null();
     if (!joint_sample_from_status(arm_, *m.body, js, tp)) continue;
-    bool changed = !have_joints_ || js.positions != joints_.positions;
+    Stamp read = reading_stamp(*m.body);
+    // A reading no newer than what was written (a repeat went out while it crossed the bus) says nothing new.
+    if (have_joints_ && !later(read, last_stamp_)) continue;
+    fresh = fresh || !have_joints_ || js.positions != joints_.positions;
     joints_ = std::move(js);
     tool_ = tp;
+    reading_ = read;
     have_joints_ = true;
-    if (changed) {
-      last_change = Clock::now();
-      // A new position goes out at once unless that would exceed the rate; the timer sends it otherwise.
-      if (Clock::now() - last_pub >= fast) {
-        publish_joints();
-        last_pub = Clock::now();
-      }
-    }
   }
 }
 

@@ -20,6 +20,8 @@ bool joint_sample_from_status(const arm::ArmConfig& arm, const nlohmann::json& s
                               ToolPoseSample& tool);
 // One DetectionSample per object of an `rbx1 detect --json` document (README.md: the mapping).
 std::vector<DetectionSample> detections_from_scan(const nlohmann::json& detect_doc);
+// When the status's firmware position was read (its firmware.read_at_ns, Unix time); now when it has none.
+Stamp reading_stamp(const nlohmann::json& status);
 
 class Ros2Bridge {
  public:
@@ -37,7 +39,7 @@ class Ros2Bridge {
 
  private:
   void run();
-  void publish_joints();
+  void publish_joints(const Stamp& stamp);
 
   Ros2Config config_;
   arm::ArmConfig arm_;
@@ -49,7 +51,8 @@ class Ros2Bridge {
   bool have_joints_ = false;
   JointSample joints_;
   ToolPoseSample tool_;
-  Stamp stamp_;
+  Stamp reading_;     // when joints_ was read from the firmware
+  Stamp last_stamp_;  // the last sample's stamp
 };
 
 }  // namespace rbx1::ros2

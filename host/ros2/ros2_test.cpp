@@ -166,7 +166,10 @@ TEST(Ros2Bridge, PublishesTheBusOverDds) {
   Reader js(cfg.domain_id, "rt/" + cfg.ns + "/joint_states", &sensor_msgs_msg_dds__JointState__desc, false);
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // discovery
   arm::Steps steps = arm::joints_to_steps(arm, {5, 10, 15, 20, 25, 30});
-  bus.publish(daemon::Topic::Status, {{"job", "pick"}, {"firmware", {{"position", steps}, {"gripper_us", 2000}}}});
+  // Stamped with the time the daemon read the position from the firmware, not when the bridge wrote it.
+  const int64_t read_at_ns = 1700000000123456789;
+  bus.publish(daemon::Topic::Status, {{"job", "pick"},
+                                      {"firmware", {{"position", steps}, {"gripper_us", 2000}, {"read_at_ns", read_at_ns}}}});
   sample = nullptr;
   ASSERT_TRUE(js.take(&sample, 5000));
   auto* m = static_cast<sensor_msgs_msg_dds__JointState_*>(sample);
@@ -175,6 +178,8 @@ TEST(Ros2Bridge, PublishesTheBusOverDds) {
   EXPECT_DOUBLE_EQ(m->position._buffer[2], deg[2] * kPi / 180);
   EXPECT_STREQ(m->name._buffer[6], "finger_left_joint");
   EXPECT_STREQ(m->header.frame_id, "");
+  EXPECT_EQ(m->header.stamp.sec, 1700000000);
+  EXPECT_EQ(m->header.stamp.nanosec, 123456789u);
   EXPECT_DOUBLE_EQ(m->position._buffer[6], 0.025);
   dds_return_loan(js.reader, &sample, 1);
   bridge.stop();

@@ -251,10 +251,13 @@ function connectEvents() {
   state.events.onmessage = (m) => {
     const e = JSON.parse(m.data);
     logEvent(e);
+    document.dispatchEvent(new CustomEvent('rbx1-event', { detail: e }));  // the 3D view (arm3d.js)
     if (e.scan !== undefined) loadScan();
     if (e.result !== undefined || e.error || e.event === 'estop') pollStatus();
     if (e.cmd === 'sort' || e.cmd === 'clear') showJob(e);
   };
+  state.events.addEventListener('status', (m) =>
+    document.dispatchEvent(new CustomEvent('rbx1-status', { detail: JSON.parse(m.data) })));
 }
 $('log-clear').addEventListener('click', () => $('log').replaceChildren());
 
