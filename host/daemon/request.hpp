@@ -21,7 +21,7 @@ enum class Command {
   Jog, PoseSave, PlaceSave, Background, Teach, CalibrateWorkspace,
   Subscribe,
   // The cell's jobs and their control (sort_jobs.cpp; jobs_request.cpp checks the recipe).
-  Sort, Clear, RecipeSave, History, Pause, Resume, Cancel,
+  Sort, Clear, RecipeSave, History, Pause, Resume, Cancel, Recipes,
 };
 
 struct Request {
