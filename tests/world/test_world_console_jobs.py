@@ -84,7 +84,8 @@ def test_a_sort_from_the_page_with_pause_and_resume_then_the_history_page(cell, 
     assert json.loads(Path(said.split(" in ", 1)[1]).read_text()) == {"cell": recipe}
     # The chooser lists the saved recipes; the one just saved is chosen.
     choice = Select(browser.find_element(By.ID, "recipe-choice"))
-    assert [o.text for o in choice.options] == ["(as edited below)", "cell"]
+    wait(browser, lambda b: [o.text for o in choice.options] == ["(as edited below)", "cell"], 10,
+         "the chooser does not list the saved recipe")
     assert choice.first_selected_option.text == "cell"
     browser.find_element(By.ID, "sort").click()
     # Answered as soon as the sort started; its progress follows on the event stream.
