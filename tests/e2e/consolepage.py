@@ -20,6 +20,13 @@ def chromium(user_dir, width=1400, height=1100):
     return drv
 
 
+def as_phone(drv, width=390, height=844):
+    """The tab as a phone's screen: a width x height CSS-pixel viewport, mobile (the page's viewport meta applies,
+    scrollbars overlay), whatever the window's size."""
+    drv.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
+                        {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": True})
+
+
 def wait(drv, what, timeout=60, msg=""):
     """what(drv) once it is truthy; on timeout the error also carries what the page said and its last log lines."""
     try:

@@ -21,7 +21,7 @@ from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 
 import rbx1e2e as e2e
-from consolepage import chromium, last_seq, log_entries, reach, status_row, wait
+from consolepage import as_phone, chromium, last_seq, log_entries, reach, status_row, wait
 from conftest import fast_config
 
 TOKEN = "console-test-token-0123456789"
@@ -310,8 +310,9 @@ def test_the_console_on_a_phone(rig, tmp_path):
     the top, middle and bottom of the page the E-STOP is inside the screen and is what a finger at its centre
     touches (elementFromPoint), the token field too (never under the E-STOP). A tap on it latches the firmware."""
     sim, d, url = rig
-    drv = chromium(tmp_path / "chromium", 390, 844)
+    drv = chromium(tmp_path / "chromium")
     try:
+        as_phone(drv)
         open_page(drv, url)
         wait(drv, lambda b: b.find_element(By.ID, "state").text == "ready", 20, "the page never showed ready")
         wait(drv, lambda b: len(rows(b)) > 0, 20, "the last scan's objects never showed")

@@ -15,7 +15,7 @@ from selenium.webdriver.support.ui import Select
 
 import worldkit
 from worldkit import e2e
-from consolepage import chromium, reach, wait  # tests/e2e, on the path through worldkit
+from consolepage import as_phone, chromium, reach, wait  # tests/e2e, on the path through worldkit
 
 SHOTS = e2e.ROOT / "build" / "e2e" / "console-jobs"
 
@@ -134,7 +134,7 @@ def test_a_sort_from_the_page_with_pause_and_resume_then_the_history_page(cell, 
     browser.save_screenshot(str(SHOTS / "3-history.png"))
 
     # A phone at the arm: both pages in one column, the E-STOP on screen and under the finger at every scroll.
-    browser.set_window_size(390, 844)
+    as_phone(browser)
     time.sleep(0.5)  # the charts redraw at the new size
     for page in ("history", "console"):
         if page == "console":
