@@ -172,7 +172,6 @@ struct Fixture {
           reply->event("working", {{"n", 1}});
           if (r.command == rbx1::daemon::Command::Sort) {  // a long job: started, then runs until the test ends it
             reply->event("sort_started", {{"job", 7}, {"kind", "sort"}});
-            reply->event("progress", {{"job", 7}, {"phase", "scan"}, {"picked", 0}});
             std::lock_guard lock(mutex);
             held = reply;
             return;
