@@ -54,6 +54,12 @@ def canvas_drawn(b, cid):
         return [n, c.width, c.height];""", cid)
 
 
+def shot(b, name):
+    """A screenshot with the jobs panel's progress in view."""
+    b.execute_script("document.getElementById('job-progress').scrollIntoView({block: 'center'})")
+    b.save_screenshot(str(SHOTS / name))
+
+
 def save_recipe(b, name, recipe):
     """Types recipe into the editor and saves it as name; returns the editor's message once it changed."""
     b.execute_script("document.getElementById('recipe-msg').textContent = ''")
@@ -97,19 +103,19 @@ def test_a_sort_from_the_page_with_pause_and_resume_then_the_history_page(cell, 
     phase, rows = progress(browser)
     assert rows["left"] != "–" and int(rows["left"]) >= 1 and rows["rate"].endswith("picks/min"), rows
     assert rows["elapsed"].endswith(" s") and rows["picked"].endswith("attempts)"), rows
-    browser.save_screenshot(str(SHOTS / "0-sort-running.png"))
+    shot(browser, "0-sort-running.png")
     browser.find_element(By.ID, "job-pause").click()
     wait(browser, lambda b: progress(b)[0] == "paused", 60, "the pause was never shown")
     wait(browser, lambda b: not b.find_element(By.ID, "job-resume").get_attribute("disabled"), 5, "Resume disabled")
     assert browser.find_element(By.ID, "job-pause").get_attribute("disabled"), "Pause enabled while paused"
     elapsed = progress(browser)[1]["elapsed"]
     wait(browser, lambda b: progress(b)[1]["elapsed"] != elapsed, 5, "the elapsed time stands still while paused")
-    browser.save_screenshot(str(SHOTS / "1-sort-paused.png"))
+    shot(browser, "1-sort-paused.png")
     browser.find_element(By.ID, "job-resume").click()
     wait(browser, lambda b: progress(b)[0] == "ended", 180, "the sort never ended")
     summary = browser.find_element(By.ID, "job-summary").text
     phase, rows = progress(browser)
-    browser.save_screenshot(str(SHOTS / "2-sort-done.png"))
+    shot(browser, "2-sort-done.png")
     n = len(cell.scene["objects"])
     assert "done: picked %d" % n in summary, summary
     assert rows["phase"] == "done" and rows["left"] == "0" and rows["picked"].startswith(str(n)), rows
