@@ -1,8 +1,8 @@
 """test_world_console_jobs.py - the console drives a sort in the simulated world (headless Chromium, as
 tests/e2e/test_console.py): in the jobs panel a recipe naming an unknown class and one naming an unknown place are
-refused with the daemon's message, a good one saved and chosen from the saved recipes, Sort answered at once (the
-job runs on, far longer than an HTTP request waits), the progress shown (phase, picks, objects left, elapsed, rate),
-Pause and Resume, the sort's end; the world's state agrees; the history page's tables and both charts drawn (the
+refused with the daemon's message, a good one saved; Clear table cancelled after its first pick; the saved recipe
+chosen, Sort answered at once (the job runs on, far longer than an HTTP request waits), the progress shown (phase,
+picks, objects left, elapsed, rate), Pause and Resume, the sort's end; the world's state agrees; the history page's tables and both charts drawn (the
 canvases not blank); both pages at a phone's 390 px: nothing runs off the screen, the E-STOP on screen and the
 first thing under a finger at its centre. Screenshots go to build/e2e/console-jobs/."""
 import json
@@ -23,7 +23,7 @@ SHOTS = e2e.ROOT / "build" / "e2e" / "console-jobs"
 @pytest.fixture
 def cell(tmp_path):
     scene_path = tmp_path / "world.json"
-    worldkit.make_world(scene_path, 21, objects=3, errors=(1.0, 0.0, 0.0), classes="rectangle,ellipse,triangle")
+    worldkit.make_world(scene_path, 21, objects=4, errors=(1.0, 0.0, 0.0), classes="rectangle,ellipse,triangle")
     c = worldkit.Cell(tmp_path, scene_path)
     yield c
     c.stop()
@@ -88,6 +88,18 @@ def test_a_sort_from_the_page_with_pause_and_resume_then_the_history_page(cell, 
     said = save_recipe(browser, "cell", recipe)
     assert said.startswith('saved "cell" in ') and said.endswith("/recipes.json"), said
     assert json.loads(Path(said.split(" in ", 1)[1]).read_text()) == {"cell": recipe}
+    # Clear table, cancelled once it has picked one: it finishes the pick under way (at most one more) and goes home.
+    n = len(cell.scene["objects"])
+    browser.find_element(By.ID, "clear").click()
+    wait(browser, lambda b: b.find_element(By.ID, "message").text.startswith("clear: started (job "), 30,
+         "the clear's start was never answered")
+    wait(browser, lambda b: progress(b)[1]["picked"].startswith("1 "), 90, "the clear's first pick never shown")
+    browser.find_element(By.ID, "job-cancel").click()
+    wait(browser, lambda b: progress(b)[0] == "ended", 120, "the cancelled clear never ended")
+    summary = browser.find_element(By.ID, "job-summary").text
+    cleared = [o for o in cell.world.state()["objects"] if o["place"]]
+    assert 1 <= len(cleared) <= 2 and all(o["place"] == "bin" for o in cleared), cleared
+    assert "clear (job 1) cancelled: picked %d" % len(cleared) in summary, summary
     # The chooser lists the saved recipes; the one just saved is chosen.
     choice = Select(browser.find_element(By.ID, "recipe-choice"))
     wait(browser, lambda b: [o.text for o in choice.options] == ["(as edited below)", "cell"], 10,
@@ -116,18 +128,20 @@ def test_a_sort_from_the_page_with_pause_and_resume_then_the_history_page(cell, 
     summary = browser.find_element(By.ID, "job-summary").text
     phase, rows = progress(browser)
     shot(browser, "2-sort-done.png")
-    n = len(cell.scene["objects"])
-    assert "done: picked %d" % n in summary, summary
-    assert rows["phase"] == "done" and rows["left"] == "0" and rows["picked"].startswith(str(n)), rows
+    rest = n - len(cleared)
+    assert "sort (job 2) done: picked %d" % rest in summary, summary
+    assert rows["phase"] == "done" and rows["left"] == "0" and rows["picked"].startswith(str(rest)), rows
     assert not browser.find_element(By.ID, "sort").get_attribute("disabled"), "Sort disabled after the sort"
     state = cell.world.state()
-    assert all(o["place"] == recipe[o["class"]] for o in state["objects"]), state["objects"]
+    assert all(o["place"] == ("bin" if o in cleared else recipe[o["class"]]) for o in state["objects"]), state["objects"]
     assert state["counts"]["collisions"] == 0
 
     browser.find_element(By.ID, "history-link").click()
     wait(browser, lambda b: len(b.find_elements(By.CSS_SELECTOR, "#picks tbody tr")) == n, 30, "no picks in the table")
-    jobs = [td.text for td in browser.find_elements(By.CSS_SELECTOR, "#jobs tbody tr td")]
-    assert jobs[1] == "sort" and jobs[2] == '"cell"' and jobs[5] == "done" and jobs[6] == str(n), jobs
+    jobs = [[td.text for td in tr.find_elements(By.TAG_NAME, "td")]
+            for tr in browser.find_elements(By.CSS_SELECTOR, "#jobs tbody tr")]
+    assert [j[1] for j in jobs] == ["sort", "clear"] and [j[5] for j in jobs] == ["done", "cancelled"], jobs
+    assert jobs[0][2] == '"cell"' and [j[6] for j in jobs] == [str(rest), str(len(cleared))], jobs
     for cid in ("chart-classes", "chart-cycle"):
         drawn = wait(browser, lambda b: canvas_drawn(b, cid)[0] > 500 and canvas_drawn(b, cid), 20, cid + " is blank")
         assert drawn[1] > 200 and drawn[2] > 100, (cid, drawn)
