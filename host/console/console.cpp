@@ -106,7 +106,9 @@ struct Exchange {
   std::condition_variable cv;
   json events = json::array();
   json final_line;
+  json started;           // a long job's started event (CommandSpec::started_event)
   bool done = false;
+  bool answered = false;  // the HTTP reply went: later lines are not kept
 };
 
 // Counts open streams; refuses beyond kMaxStreams.
@@ -226,15 +228,21 @@ struct Console::Impl {
     auto present = std::make_shared<std::atomic<bool>>(true);
     const bool watch_page = valid_page_id(page) && page_open(page);
     // Called with the reply's lock held: only stores, never waits. The event log gets the lines from the bus.
-    daemon::Reply::Sink sink = [ex](const std::string& line, bool final_line) {
+    const std::string started_event = spec.started_event ? spec.started_event : "";
+    daemon::Reply::Sink sink = [ex, started_event](const std::string& line, bool final_line) {
       json l = json::parse(line, nullptr, false);
       std::lock_guard lock(ex->mutex);
+      if (ex->answered) return;  // a long job answered when it started: the rest is the event stream's
       if (final_line) {
         ex->final_line = l;
         ex->done = true;
         ex->cv.notify_all();
       } else {
         ex->events.push_back(l);
+        if (!started_event.empty() && l.is_object() && l.value("event", "") == started_event) {
+          ex->started = l;
+          ex->cv.notify_all();
+        }
       }
     };
     const bool dead_man = request.command == daemon::Command::Jog;
@@ -249,8 +257,20 @@ struct Console::Impl {
         }
         return true;
       };
-    submit(request, std::make_shared<daemon::Reply>(sink, request.command, presence));
+    auto reply = std::make_shared<daemon::Reply>(sink, request.command, presence);
+    const uint64_t req_id = reply->id();
+    submit(request, std::move(reply));
     std::unique_lock lock(ex->mutex);
+    const auto deadline = std::chrono::steady_clock::now() +
+                          std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                              std::chrono::duration<double>(job_timeout_s + 30));
+    // A sort or clear runs until the table is done, longer than an HTTP request should wait: 202 once it started
+    // (its "req" names its lines on GET /api/events); a refusal before it starts keeps its status code.
+    if (!started_event.empty() && ex->cv.wait_until(lock, deadline, [&] { return ex->done || !ex->started.is_null(); }) &&
+        !ex->done) {
+      ex->answered = true;
+      return send_json(res, 202, {{"started", ex->started}, {"req", req_id}, {"events", std::move(ex->events)}});
+    }
     if (dead_man && !ex->cv.wait_for(lock, kHoldAfter, [&] { return ex->done; })) {
       // Still moving: answer 200 now and stream, so that a client gone mid-move is seen by the failing write. Not
       // reusable: a browser leaving the page would otherwise read the rest to keep the connection, and stay.
@@ -275,8 +295,7 @@ struct Console::Impl {
       });
       return;
     }
-    auto limit = std::chrono::duration<double>(job_timeout_s + 30);
-    if (!ex->cv.wait_for(lock, limit, [&] { return ex->done; })) {
+    if (!ex->cv.wait_until(lock, deadline, [&] { return ex->done; })) {
       send_json(res, 504, error_json("timeout", "no final reply within " + std::to_string(int(job_timeout_s + 30)) +
                                                     " s; the job goes on (see the event log)"));
       return;
@@ -334,6 +353,9 @@ struct Console::Impl {
 
     http.Get("/api/status", [this](const httplib::Request& req, httplib::Response& res) {
       if (allowed(req, res, Kind::Read)) run_request(R"({"cmd":"status"})", res);
+    });
+    http.Get("/api/recipes", [this](const httplib::Request& req, httplib::Response& res) {
+      if (allowed(req, res, Kind::Read)) run_request(R"({"cmd":"recipes"})", res);
     });
     http.Post(R"(/api/([a-z_]{1,40}))", [this](const httplib::Request& req, httplib::Response& res) {
       std::string cmd = req.matches[1];

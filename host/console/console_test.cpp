@@ -5,6 +5,7 @@
 #include <httplib.h>
 
 #include <algorithm>
+#include <chrono>
 #include <fstream>
 #include <iterator>
 #include <thread>
@@ -163,6 +164,7 @@ const char* kToken = "0123456789abcdef0123";
 
 struct Fixture {
   std::vector<rbx1::daemon::Request> seen;
+  std::shared_ptr<rbx1::daemon::Reply> held;  // a sort's reply, still open
   std::mutex mutex;
   rbx1::daemon::Bus bus;
   std::unique_ptr<rbx1::camera::FrameSource> camera;
@@ -189,6 +191,13 @@ struct Fixture {
           // As rbx1d's handler does: every request but reads on the bus, which the event log follows.
           if (r.command != rbx1::daemon::Command::Status) reply->publish_to(bus, rbx1::daemon::request_json(r));
           reply->event("working", {{"n", 1}});
+          if (r.command == rbx1::daemon::Command::Sort) {  // a long job: started, then runs until the test ends it
+            reply->event("sort_started", {{"job", 7}, {"kind", "sort"}});
+            std::lock_guard lock(mutex);
+            held = reply;
+            return;
+          }
+          if (r.command == rbx1::daemon::Command::Clear) return reply->error("unknown_place", "no place \"moon\"");
           if (r.command == rbx1::daemon::Command::Home) reply->error("not_ready", "the arm is not ready");
           else reply->result({{"cmd", rbx1::daemon::command_name(r.command)}, {"name", r.name}});
         },
@@ -358,6 +367,55 @@ TEST(ConsoleHttp, ThreeDViewPartsAndTheStatusOnTheEventStream) {
   size_t at = stream.find(want);
   ASSERT_NE(at, std::string::npos) << stream;
   EXPECT_TRUE(at == 0 || stream.compare(at - 2, 2, "\n\n") == 0) << "a status has no id (no replay): " << stream;
+}
+
+// A sort runs until the table is done, far longer than an HTTP request may wait (the fixture's job_timeout_s is 5:
+// it once answered 504 after job_timeout_s + 30 s): answered 202 as soon as it started, its progress and its end on
+// the event stream; a sort or clear refused before it starts keeps its status code.
+TEST(ConsoleHttp, ALongJobIsAnsweredWhenItStartsAndReportsOnTheEventStream) {
+  Fixture f("");
+  auto t0 = std::chrono::steady_clock::now();
+  auto r = f.post("/api/sort", R"({"recipe":{"star":"tray"}})");
+  double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202) << r->body;
+  EXPECT_LT(waited, 5.0);
+  json b = body(r);
+  EXPECT_EQ(b["started"]["event"], "sort_started");
+  EXPECT_EQ(b["started"]["job"], 7);
+  EXPECT_FALSE(b.contains("result"));
+  ASSERT_EQ(b["events"].size(), 2u) << b.dump();  // working, sort_started: what came before the answer
+  std::shared_ptr<rbx1::daemon::Reply> held;
+  {
+    std::lock_guard lock(f.mutex);
+    held = f.held;
+  }
+  ASSERT_TRUE(held);
+  EXPECT_EQ(b["req"], held->id());
+  held->event("progress", {{"job", 7}, {"phase", "pick"}, {"picked", 1}});
+  held->result({{"job", 7}, {"outcome", "done"}, {"picked_total", 1}});
+  // The event stream carries the sort's lines, named by its req, to the end.
+  std::string stream;
+  httplib::Client sse("127.0.0.1", f.console->port());
+  sse.Get("/api/events", [&](const char* data, size_t n) {
+    stream.append(data, n);
+    return stream.find("\"outcome\":\"done\"") == std::string::npos;
+  });
+  std::string req = "\"req\":" + std::to_string(held->id());
+  size_t started = stream.find("\"event\":\"sort_started\""), picked = stream.find("\"picked\":1");
+  size_t done = stream.find("\"outcome\":\"done\"");
+  ASSERT_NE(started, std::string::npos) << stream;
+  ASSERT_NE(picked, std::string::npos) << stream;
+  ASSERT_NE(done, std::string::npos) << stream;
+  EXPECT_LT(started, picked);
+  EXPECT_LT(picked, done);
+  EXPECT_NE(stream.find(req), std::string::npos) << stream;
+  // Refused before it starts: the daemon's code and status, at once.
+  r = f.post("/api/clear", R"({"place":"moon"})");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 409) << r->body;
+  EXPECT_EQ(body(r)["error"]["code"], "unknown_place");
+  EXPECT_EQ(f.count(), 2u);
 }
 
 TEST(ConsoleHttp, NonLoopbackReadsNeedTheToken) {

@@ -105,10 +105,11 @@ const std::vector<CommandSpec>& kTable = *new std::vector<CommandSpec>{
      "sort the table: each class to its recipe's place, until nothing the recipe maps is left",
      {{"recipe", F::Any, true, &Request::recipe, "a saved recipe's name, or {\"CLASS\": \"PLACE\", \"*\": ..., \"unknown\": ...}"},
       {"max_picks", F::Integer, false, &Request::max_picks, "stop after this many picks", 1, 100000}},
-     check_sort_request},
+     check_sort_request, nullptr, "sort_started"},
     {Command::Clear, "clear", Access::Act, Mode::Job, "clear the table: every pickable object to one place",
      {{"place", F::Name, true, &Request::place, "a place of [arm] places"},
-      {"max_picks", F::Integer, false, &Request::max_picks, "stop after this many picks", 1, 100000}}},
+      {"max_picks", F::Integer, false, &Request::max_picks, "stop after this many picks", 1, 100000}},
+     nullptr, nullptr, "sort_started"},
     {Command::RecipeSave, "recipe_save", Access::Act, Mode::Immediate,
      "save a recipe (checked against places and library) in STATE_DIR/recipes.json",
      {{"name", F::Name, true, &Request::name, "the recipe's name"},
@@ -122,6 +123,8 @@ const std::vector<CommandSpec>& kTable = *new std::vector<CommandSpec>{
     {Command::Pause, "pause", Access::Act, Mode::Immediate, "pause the sort or clear after the pick under way", {}},
     {Command::Resume, "resume", Access::Act, Mode::Immediate, "resume a paused sort or clear", {}},
     {Command::Cancel, "cancel", Access::Act, Mode::Immediate, "cancel the sort or clear after the pick under way; home", {}},
+    {Command::Recipes, "recipes", Access::Read, Mode::Immediate,
+     "the saved recipes (STATE_DIR/recipes.json), with the classes and places a recipe may name", {}},
 };
 
 std::vector<std::string> split_choices(const char* choices) {

@@ -56,6 +56,9 @@ struct CommandSpec {
   bool (*check)(const nlohmann::json& request, Request& out, Error& error) = nullptr;
   // The request's JSON where "non-default fields" is not enough (jog's forms); null: the generic rule.
   void (*write)(const Request& r, nlohmann::json& out) = nullptr;
+  // A job that runs until the table is done (sort, clear): the event saying it started. A client that cannot wait
+  // that long (the console's HTTP request) is answered with it, and follows the rest on the bus. null: none.
+  const char* started_event = nullptr;
 };
 
 // A FieldType::Name value: a non-empty string of at most 64 printable characters.

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "command_table.hpp"
 #include "recipes.hpp"
 #include "request.hpp"
 #include "sort_choice.hpp"
@@ -138,6 +139,12 @@ TEST(JobsRequest, FieldsOfSortClearRecipeSaveAndHistory) {
   EXPECT_EQ(r.job, 3);
   ASSERT_TRUE(parse_request(R"({"cmd":"pause"})", r, e));
   EXPECT_EQ(r.command, Command::Pause);
+  ASSERT_TRUE(parse_request(R"({"cmd":"recipes"})", r, e));
+  EXPECT_EQ(r.command, Command::Recipes);
+  // A sort and a clear run until the table is done: the console answers them when their started event comes.
+  EXPECT_STREQ(command_spec(Command::Sort).started_event, "sort_started");
+  EXPECT_STREQ(command_spec(Command::Clear).started_event, "sort_started");
+  EXPECT_EQ(command_spec(Command::Pick).started_event, nullptr);
 
   EXPECT_FALSE(parse_request(R"({"cmd":"sort"})", r, e));
   EXPECT_EQ(e.code, "missing_field");
@@ -152,5 +159,7 @@ TEST(JobsRequest, FieldsOfSortClearRecipeSaveAndHistory) {
   EXPECT_FALSE(parse_request(R"({"cmd":"history","format":"xml"})", r, e));
   EXPECT_EQ(e.code, "bad_field");
   EXPECT_FALSE(parse_request(R"({"cmd":"pause","now":true})", r, e));
+  EXPECT_EQ(e.code, "bad_field");
+  EXPECT_FALSE(parse_request(R"({"cmd":"recipes","name":"bins"})", r, e));
   EXPECT_EQ(e.code, "bad_field");
 }

@@ -9,6 +9,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 
@@ -96,13 +97,16 @@ class Machine {
   void job_teach(Reply& reply, const Request& request);
   void job_calibrate_workspace(Reply& reply, const Request& request);
   // The cell's jobs (sort_jobs.cpp): sort by a recipe, clear to one place, each pick into the history; and the
-  // requests answered at once: pause, resume, cancel, history, recipe_save (true when request was one of them).
+  // requests answered at once: pause, resume, cancel, history, recipe_save, recipes (true when request was one of
+  // them).
   friend class SortRun;
   void job_sort(Reply& reply, const Request& request);
   bool handle_jobs_request(const Request& request, Reply& reply);
   bool open_history(std::string& error);
   // The recipe's places are known and its classes in the library (clear: places only); else error naming one.
   bool check_recipe_here(const std::map<std::string, std::string>& recipe, bool places_only, std::string& error);
+  // The names a recipe may use here: the [arm] places and the library's classes (places_only: classes = {"*"}).
+  bool recipe_names(std::set<std::string>& places, std::set<std::string>& classes, bool places_only, std::string& error);
   // The camera-to-arm map in force for status: {"in_force": "mount"} or the saved workspace calibration's figures.
   nlohmann::json calibration_summary(const calib::WorkspaceCalibration* w) const;
   bool current_pose(Reply& reply, arm::Steps& steps, arm::Joints& deg);  // a fresh STATUS; false after reply.error

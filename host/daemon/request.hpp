@@ -22,7 +22,7 @@ enum class Command {
   Subscribe,
   Scene,  // the console's 3D view (scene.hpp)
   // The cell's jobs and their control (sort_jobs.cpp; jobs_request.cpp checks the recipe).
-  Sort, Clear, RecipeSave, History, Pause, Resume, Cancel,
+  Sort, Clear, RecipeSave, History, Pause, Resume, Cancel, Recipes,
 };
 
 struct Request {

@@ -341,20 +341,25 @@ void Machine::job_sort(Reply& reply, const Request& request) {
   SortRun(*this, reply, command_name(request.command), std::move(recipe), std::move(label), request.max_picks).run();
 }
 
-bool Machine::check_recipe_here(const Recipe& recipe, bool places_only, std::string& error) {
-  std::set<std::string> places, classes;
+bool Machine::recipe_names(std::set<std::string>& places, std::set<std::string>& classes, bool places_only,
+                           std::string& error) {
   {
     std::lock_guard lock(mutex_);
     for (const auto& [name, place] : config_.arm.places) places.insert(name);
   }
-  vision::Library lib;
-  if (!places_only) {
-    if (!vision::load_library(config_.vision.library_path, lib, error, /*allow_missing=*/true)) return false;
-    for (const auto& e : lib.entries) classes.insert(e.name);
-  } else {
+  if (places_only) {
     classes = {kAnyClass};
+    return true;
   }
-  return check_recipe(recipe, places, classes, error);
+  vision::Library lib;
+  if (!vision::load_library(config_.vision.library_path, lib, error, /*allow_missing=*/true)) return false;
+  for (const auto& e : lib.entries) classes.insert(e.name);
+  return true;
+}
+
+bool Machine::check_recipe_here(const Recipe& recipe, bool places_only, std::string& error) {
+  std::set<std::string> places, classes;
+  return recipe_names(places, classes, places_only, error) && check_recipe(recipe, places, classes, error);
 }
 
 bool Machine::handle_jobs_request(const Request& request, Reply& reply) {
@@ -401,6 +406,20 @@ bool Machine::handle_jobs_request(const Request& request, Reply& reply) {
         return true;
       }
       reply.result({{"saved", request.name}, {"recipe", recipe_json(recipe)}, {"file", RecipeBook(config_.daemon.state_dir).path()}});
+      return true;
+    }
+    case Command::Recipes: {  // the console's chooser and editor
+      std::map<std::string, Recipe> book;
+      std::set<std::string> places, classes;
+      std::string error;
+      RecipeBook recipes(config_.daemon.state_dir);
+      if (!recipes.load(book, error) || !recipe_names(places, classes, false, error)) {
+        reply.error("state_failed", error);
+        return true;
+      }
+      json saved = json::object();
+      for (const auto& [name, recipe] : book) saved[name] = recipe_json(recipe);
+      reply.result({{"recipes", saved}, {"file", recipes.path()}, {"places", places}, {"classes", classes}});
       return true;
     }
     default:

@@ -21,7 +21,7 @@ from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 
 import rbx1e2e as e2e
-from consolepage import last_seq, log_entries, status_row, wait
+from consolepage import as_phone, chromium, last_seq, log_entries, reach, status_row, wait
 from conftest import fast_config
 
 TOKEN = "console-test-token-0123456789"
@@ -303,6 +303,41 @@ def test_bad_requests_move_nothing(rig):
     # Reading state on loopback needs no token; the daemon is still up.
     code, body = http(api + "status")
     assert code == 200 and body["result"]["ready"], body
+
+
+def test_the_console_on_a_phone(rig, tmp_path):
+    """A phone at the arm, 390x844 CSS pixels: the page is one column with nothing running off to the right, and at
+    the top, middle and bottom of the page the E-STOP is inside the screen and is what a finger at its centre
+    touches (elementFromPoint), the token field too (never under the E-STOP). A tap on it latches the firmware."""
+    sim, d, url = rig
+    drv = chromium(tmp_path / "chromium")
+    try:
+        as_phone(drv)
+        open_page(drv, url)
+        wait(drv, lambda b: b.find_element(By.ID, "state").text == "ready", 20, "the page never showed ready")
+        wait(drv, lambda b: len(rows(b)) > 0, 20, "the last scan's objects never showed")
+        wait(drv, lambda b: b.find_element(By.ID, "jobs-panel").is_displayed(), 10, "no jobs panel")
+        drv.find_element(By.CSS_SELECTOR, "#recipe-editor summary").click()  # the widest parts open
+        layout = reach(drv)
+        assert layout["width"] == 390, layout
+        assert layout["overflow_px"] <= 0, layout
+        assert len(layout["positions"]) == 3 and layout["positions"][2]["scroll"] > 1000, layout
+        for p in layout["positions"]:
+            assert p["estop_in"] and p["estop_hit"] and p["token_hit"] is not False, layout
+        assert layout["positions"][0]["token_hit"], layout
+        side, view = (drv.find_element(By.ID, i).rect for i in ("side", "view-panel"))
+        assert side["y"] >= view["y"] + view["height"] and side["x"] + side["width"] <= 390, (side, view)
+        drv.save_screenshot(str(SHOTS / "7-phone-top.png"))
+        drv.execute_script("scrollTo(0, document.documentElement.scrollHeight)")
+        drv.save_screenshot(str(SHOTS / "8-phone-bottom.png"))
+        drv.find_element(By.ID, "estop").click()  # Selenium refuses a click that another element would take
+        wait(drv, lambda b: "latched" in b.find_element(By.ID, "message").text, 20, "no e-stop confirmation")
+        fw = e2e.status(d)["firmware"]
+        assert fw["state"] == "FAULT" and "ESTOP_COMMAND" in fw["faults"], fw
+    finally:
+        drv.quit()
+    assert "result" in d.request({"cmd": "clear_fault"})[1]
+    assert "result" in d.request({"cmd": "home"})[1]
 
 
 def test_console_config_errors(tmp_path):

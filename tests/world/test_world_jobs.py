@@ -40,6 +40,11 @@ def test_sort_then_clear_run_to_their_end_and_the_world_agrees(tmp_path):
         (tmp_path / "bins.json").write_text(json.dumps(recipe))
         saved = cli(cell, "recipe", "save", "bins", str(tmp_path / "bins.json"))
         assert saved.returncode == 0, saved.stderr
+        listed = cli(cell, "recipes", "--json")
+        assert listed.returncode == 0, listed.stderr
+        book = json.loads(listed.stdout.splitlines()[-1])["result"]
+        assert book["recipes"] == {"bins": recipe} and book["file"].endswith("/recipes.json"), book
+        assert set(classes) <= set(book["classes"]) and {"tray", "bin"} <= set(book["places"]), book
 
         t0 = time.monotonic()
         sort = cli(cell, "sort", "--recipe", "bins", "--json")

@@ -24,7 +24,8 @@ function say(text, kind) {
 // Requests that end when the page goes away (a jog's dead-man rule: its connection closes, the daemon stops it).
 const leaving = new AbortController();
 window.addEventListener('pagehide', () => leaving.abort());
-// POST /api/CMD with body; resolves to the daemon's final line ({result} or {error}) with its events.
+// POST /api/CMD with body; resolves to the daemon's final line ({result} or {error}) with its events, or for a sort
+// or clear that started, {started, req} (202).
 async function call(cmd, body) {
   let reply;
   try {
@@ -34,8 +35,9 @@ async function call(cmd, body) {
   } catch (e) {
     reply = { error: { code: 'unreachable', message: 'rbx1d did not answer: ' + e } };
   }
-  if (reply.error && reply.error.code === 'estop' && cmd !== 'estop') return reply;  // the e-stop's own line stays
+  if (reply.error && reply.error.code === 'estop') return reply;  // the e-stop's own message (estop.js) stays
   if (reply.error) say(cmd + ': ' + reply.error.code + ': ' + reply.error.message, 'error');
+  else if (reply.started) say(cmd + ': started (job ' + reply.started.job + '): its progress below', 'ok');
   else say(cmd + ': done', 'ok');
   return reply;
 }
@@ -47,18 +49,6 @@ function action(id, fn) {
     try { await fn(); } finally { b.disabled = false; }
   });
 }
-
-// ---- e-stop: its own request, never queued behind the others ------------------------------------------------
-async function estop() {
-  say('E-STOP sent…', 'error');
-  const r = await call('estop');
-  if (r.result) say('E-STOP latched' + (r.result.aborted_job ? ' (job aborted)' : '') + ': clear the fault to go on', 'error');
-}
-$('estop').addEventListener('click', estop);
-document.addEventListener('keydown', (e) => {
-  const typing = e.target.tagName === 'INPUT';
-  if (e.key === 'Escape' || (e.key === ' ' && !typing)) { e.preventDefault(); estop(); }
-});
 
 // ---- arm state ----------------------------------------------------------------------------------------------
 function fmt(v) {
@@ -93,6 +83,10 @@ function showStatus(s) {
   badge.className = 'badge ' + (s.ready ? 'ok' : 'bad');
   $('job').textContent = s.job ? 'job: ' + s.job : '';
   $('job').className = 'badge quiet' + (s.job ? ' busy' : '');
+  if (!s.job && job.running) {  // its end was missed (the event stream reconnected): the status has the last word
+    Object.assign(job, { running: false, paused: false });
+    jobButtons();
+  }
   const rows = [['firmware', fw.state], ['faults', faults], ['notice', notices.length ? notices.join('; ') : null],
                 ['homed', homedText(fw.homed, (s.joints_deg || []).length)], ['joints (°)', s.joints_deg],
                 ['position (steps)', fw.position], ['gripper (µs)', fw.gripper_us],
@@ -280,6 +274,7 @@ $('token').addEventListener('change', () => {
   showView();
   loadScan();
   pollStatus();
+  loadInfo();
 });
 
 // ---- operator commands (shown when the daemon knows them) -----------------------------------------------------
@@ -336,46 +331,130 @@ action('calib-fit', () => calib({ action: 'fit' }));
 action('calib-save', () => calib({ action: 'save' }));
 action('calib-cancel', () => calib({ action: 'cancel' }));
 
-// ---- the cell's jobs: sort and clear run long; their progress comes with the event stream -----------------------
-function recipeField() {
-  const text = $('sort-recipe').value.trim();
-  if (!text.startsWith('{')) return text;
-  try { return JSON.parse(text); } catch (e) { return null; }
+// ---- the cell's jobs: a sort or clear runs long; its POST is answered when it started (202), its progress comes
+// with the event stream (any client's job: the CLI's too) ------------------------------------------------------
+const job = { running: false, paused: false, elapsed: 0, at: 0, recipes: {} };
+function jobButtons() {
+  $('sort').disabled = $('clear').disabled = job.running;
+  $('job-pause').disabled = !job.running || job.paused;
+  $('job-resume').disabled = !job.paused;
+  $('job-cancel').disabled = !job.running;
+}
+function jobButton(id, fn) {
+  $(id).addEventListener('click', async () => {
+    $(id).disabled = true;
+    try { await fn(); } finally { jobButtons(); }
+  });
+}
+function duration(s) {
+  s = Math.max(0, Math.round(s));
+  return s < 60 ? s + ' s' : Math.floor(s / 60) + ' min ' + String(s % 60).padStart(2, '0') + ' s';
+}
+function setProgress(fields) {
+  for (const [k, v] of Object.entries(fields)) $('jp-' + k).textContent = v === undefined || v === null ? '–' : v;
+}
+// The elapsed time goes on between the job's progress events.
+setInterval(() => { if (job.running) setProgress({ elapsed: duration(job.elapsed + (performance.now() - job.at) / 1000) }); }, 500);
+
+// Objects left at a job's end: none to pick when it is done (else as the last progress said), and what it leaves
+// on purpose: classes the recipe does not map, objects skipped.
+function leftAtEnd(r) {
+  const unmapped = Object.values(r.left).reduce((a, b) => a + b, 0);
+  const notes = [unmapped && unmapped + ' not in the recipe', r.skipped.length && r.skipped.length + ' skipped'];
+  const left = r.outcome === 'done' ? '0' : $('jp-left').textContent;
+  return left + (notes.some(Boolean) ? ' (' + notes.filter(Boolean).join(', ') + ')' : '');
 }
 function showJob(e) {
   const p = $('job-progress');
-  if (e.event === 'progress') {
-    p.textContent = `${e.cmd} (job ${e.job}): ${e.phase} - picked ${e.picked}, ${e.left} left, ` +
-                    `${e.elapsed_s} s, ${e.rate_per_min} picks/min`;
+  if (e.event === 'sort_started') {
+    Object.assign(job, { running: true, paused: false, elapsed: 0, at: performance.now() });
+    setProgress({ job: e.job + ' (' + e.kind + ')', phase: 'started', picked: 0, left: null, rate: null });
+    $('job-summary').textContent = '';
+    $('job-summary').title = '';
+    p.dataset.phase = 'started';
+  } else if (e.event === 'progress') {
+    Object.assign(job, { running: true, paused: e.phase === 'paused', elapsed: e.elapsed_s, at: performance.now() });
+    setProgress({ job: e.job + ' (' + e.cmd + ')', phase: e.phase, picked: e.picked + ' (' + e.attempts + ' attempts)',
+                  left: e.left, elapsed: duration(e.elapsed_s), rate: e.rate_per_min + ' picks/min' });
     p.dataset.phase = e.phase;
-  } else if (e.result !== undefined) {
+  } else if (e.result !== undefined || e.error) {
+    Object.assign(job, { running: false, paused: false });
     const r = e.result;
-    p.textContent = `${e.cmd} (job ${r.job}) ${r.outcome}: picked ${r.picked_total} in ${r.elapsed_s} s ` +
-                    `(${r.picks_per_min}/min), failed ${r.failed}, skipped ${r.skipped.length}`;
-    p.dataset.phase = 'ended';
-  } else if (e.error) {
-    p.textContent = `${e.cmd}: ${e.error.code}: ${e.error.message}`;
+    $('job-summary').textContent = r
+      ? `${e.cmd} (job ${r.job}) ${r.outcome}: picked ${r.picked_total} in ${r.elapsed_s} s (${r.picks_per_min}/min), ` +
+        `failed ${r.failed}, skipped ${r.skipped.length}` + r.skipped.map((x) => ` [${x.class}: ${x.reason}]`).join('')
+      : `${e.cmd}: ${e.error.code}: ${e.error.message}`;
+    if (r) setProgress({ phase: r.outcome, picked: r.picked_total + ' (' + r.attempts + ' attempts)',
+                         left: leftAtEnd(r), elapsed: duration(r.elapsed_s), rate: r.picks_per_min + ' picks/min' });
+    else setProgress({ phase: e.error.code });
     p.dataset.phase = 'ended';
   } else if (e.event === 'skipped') {
-    p.title = (p.title ? p.title + '\n' : '') + `skipped ${e.class}: ${e.reason} (${e.detail})`;
+    $('job-summary').title += `skipped ${e.class}: ${e.reason} ${e.detail || ''}\n`;
   }
+  jobButtons();
 }
-action('sort', () => {
-  const recipe = recipeField();
-  if (!recipe) return say('sort: a recipe name or a JSON object {"CLASS": "PLACE"}', 'error');
-  $('job-progress').title = '';
-  return call('sort', { recipe });
+
+// Recipes: the saved ones to choose from (recipes.json), or the editor's own (run as it is, or saved by a name).
+async function loadRecipes(select) {
+  try {
+    const r = await fetch('/api/recipes', { headers: headers(false) });
+    const j = await r.json();
+    if (!j.result) return;
+    job.recipes = j.result.recipes;
+    const names = Object.keys(job.recipes).sort();
+    const list = $('recipe-choice');
+    const keep = select || list.value;
+    list.replaceChildren(new Option('(as edited below)', ''), ...names.map((n) => new Option(n, n)));
+    list.value = names.includes(keep) ? keep : names[0] || '';
+    $('recipe-names').textContent = 'classes: ' + [...j.result.classes, '"*" (every other)', '"unknown"'].join(', ') +
+                                    '; places: ' + j.result.places.join(', ');
+    chooseRecipe();
+  } catch (e) { /* the status badge says when rbx1d is away */ }
+}
+function chooseRecipe() {
+  const name = $('recipe-choice').value;
+  if (!name) return;
+  $('recipe-text').value = JSON.stringify(job.recipes[name], null, 1).replace(/\n\s*/g, ' ');
+  $('recipe-name').value = name;
+}
+$('recipe-choice').addEventListener('change', chooseRecipe);
+$('recipe-text').addEventListener('input', () => { $('recipe-choice').value = ''; });  // edited: run what is typed
+function editedRecipe() {
+  try {
+    const r = JSON.parse($('recipe-text').value);
+    return r && typeof r === 'object' && !Array.isArray(r) ? r : null;
+  } catch (e) { return null; }
+}
+function recipeMessage(text, kind) {
+  $('recipe-msg').textContent = text;
+  $('recipe-msg').className = kind;
+}
+async function startJob(cmd, body) {
+  const r = await call(cmd, body);
+  if (r.started) Object.assign(job, { running: true, paused: false });
+  return r;
+}
+jobButton('sort', () => {
+  const recipe = $('recipe-choice').value || editedRecipe();
+  if (!recipe) {
+    $('recipe-editor').open = true;
+    return recipeMessage('choose a saved recipe, or type one: {"CLASS": "PLACE", ...}', 'error');
+  }
+  return startJob('sort', { recipe });
 });
-action('recipe-save', () => {
-  const recipe = recipeField();
-  const name = prompt('save this recipe as');
-  if (!recipe || typeof recipe !== 'object' || !name) return say('recipe: type a JSON recipe, then a name', 'error');
-  return call('recipe_save', { name, recipe });
+jobButton('clear', () => startJob('clear', { place: $('clear-place').value.trim() }));
+jobButton('job-pause', () => call('pause'));
+jobButton('job-resume', () => call('resume'));
+jobButton('job-cancel', () => call('cancel'));
+action('recipe-save', async () => {
+  const name = $('recipe-name').value.trim();
+  const recipe = editedRecipe();
+  if (!name || !recipe) return recipeMessage('a name and a JSON object {"CLASS": "PLACE", ...}', 'error');
+  const r = await call('recipe_save', { name, recipe });
+  if (r.error) return recipeMessage(r.error.code + ': ' + r.error.message, 'error');
+  recipeMessage('saved "' + name + '" in ' + r.result.file, 'ok');
+  return loadRecipes(name);
 });
-action('clear', () => call('clear', { place: $('clear-place').value.trim() }));
-action('job-pause', () => call('pause'));
-action('job-resume', () => call('resume'));
-action('job-cancel', () => call('cancel'));
 
 async function loadInfo() {
   try {
@@ -387,6 +466,7 @@ async function loadInfo() {
     $('teach-panel').hidden = !(has.has('pose_save') || has.has('place_save') || has.has('background') || has.has('teach'));
     $('calib-panel').hidden = !has.has('calibrate_workspace');
     $('jobs-panel').hidden = !has.has('sort');
+    if (has.has('recipes')) loadRecipes();
   } catch (e) { /* optional */ }
 }
 

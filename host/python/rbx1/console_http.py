@@ -43,7 +43,8 @@ def _read_json(resp, url, timeout):
 
 def lines(base_url, token, request, timeout):
     """One request through the console: yields its event lines, then the final line. The console answers when the
-    request has ended, so the events all come at once, at the end."""
+    request has ended, so the events all come at once, at the end; but a sort or clear is answered when it started
+    (202 {"started", "req"}): its later lines are read from the event stream."""
     if not isinstance(request, dict) or not isinstance(request.get("cmd"), str):
         raise ValueError("the HTTP API takes a request as a dict with a \"cmd\"")
     fields = {k: v for k, v in request.items() if k != "cmd"}
@@ -53,7 +54,28 @@ def lines(base_url, token, request, timeout):
     body = _read_json(_open(url, token, None if get else fields, timeout), url, timeout)
     for event in body.get("events") or []:
         yield event
-    yield body
+    if "started" in body and "req" in body:
+        yield from _follow(base_url, token, body["started"], body["req"], timeout)
+    else:
+        yield body
+
+
+def _follow(base_url, token, started, req, timeout):
+    """A long job's lines after its started line, from the event stream (whose replay of the last lines skipped up to
+    that line), to its final line."""
+    seen_start = False
+    for line in events(base_url, token, timeout):
+        if "req" not in line and "error" in line:  # the stream itself refused (token)
+            yield line
+            return
+        if line.get("req") != req:
+            continue
+        if not seen_start:
+            seen_start = line.get("event") == started.get("event") and line.get("ts") == started.get("ts")
+            continue
+        yield line
+        if "result" in line or "error" in line:
+            return
 
 
 def events(base_url, token, timeout):

@@ -237,6 +237,7 @@ class FakeConsole(http.server.BaseHTTPRequestHandler):
     """Answers as console.cpp does: a token is needed for POSTs; the reply carries its events."""
     token = "s3cret-token-0123456789"
     seen = []
+    stream = []  # the lines of GET /api/events (the console fixture sets them)
 
     def log_message(self, *args):
         pass
@@ -257,8 +258,8 @@ class FakeConsole(http.server.BaseHTTPRequestHandler):
             self.send_response(200)
             self.send_header("Content-Type", "text/event-stream")
             self.end_headers()
-            for i in range(2):
-                self.wfile.write(f"id: {i + 1}\ndata: {json.dumps({'req': 1, 'event': 'step', 'n': i})}\n\n".encode())
+            for i, line in enumerate(self.stream):
+                self.wfile.write(f"id: {i + 1}\ndata: {json.dumps(line)}\n\n".encode())
             self.wfile.write(b": keep-alive\n\n")
             self.wfile.flush()
             return
@@ -271,6 +272,8 @@ class FakeConsole(http.server.BaseHTTPRequestHandler):
             return self.reply(415, {"error": {"code": "bad_request", "message": "not JSON"}})
         if self.headers.get("Authorization") != "Bearer " + self.token:
             return self.reply(401, {"error": {"code": "unauthorized", "message": "wrong console token"}})
+        if self.path == "/api/sort":  # answered when it started, as console.cpp does
+            return self.reply(202, {"started": event("sort_started", job=3), "req": 7, "events": [event("sort_started", job=3)]})
         if self.path == "/api/pick" and body.get("name") == "unicorn":
             absent = {"code": "object_absent", "message": "object \"unicorn\" is not in the scene"}
             return self.reply(409, {"error": absent, "events": [event("absent")]})
@@ -280,6 +283,7 @@ class FakeConsole(http.server.BaseHTTPRequestHandler):
 @pytest.fixture
 def console():
     FakeConsole.seen = []
+    FakeConsole.stream = [{"req": 1, "event": "step", "n": i} for i in range(2)]
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), FakeConsole)
     threading.Thread(target=server.serve_forever, daemon=True).start()
     yield f"http://127.0.0.1:{server.server_address[1]}"
@@ -295,6 +299,22 @@ def test_http_sends_the_bearer_token_and_the_fields(console):
     assert arm.status() == {"ready": True}
     assert FakeConsole.seen == [("POST", "/api/pick", "Bearer " + FakeConsole.token, {"name": "bolt", "place": "tray"}),
                                 ("GET", "/api/status", "Bearer " + FakeConsole.token, None)]
+
+
+def test_http_a_sort_answered_when_it_started_is_followed_on_the_event_stream(console):
+    """The console answers a sort 202 when it started; the client reads its later lines (req 7) from the event stream,
+    after the replayed ones up to its start, to its final line."""
+    later = {"ts": "2026-12-02T06:00:01.000Z", "t_ms": 1000.0}
+    FakeConsole.stream = [{"req": 6, "cmd": "scan", "result": {}, "final": True},
+                          {"req": 7, "cmd": "sort", "request": {"cmd": "sort"}},
+                          {"req": 7, "cmd": "sort", **event("sort_started", job=3)},
+                          {"req": 8, "cmd": "status", "event": "other"},
+                          {"req": 7, "cmd": "sort", **later, "event": "progress", "phase": "pick", "picked": 0},
+                          {"req": 7, "cmd": "sort", "result": {"job": 3, "outcome": "done"}, "final": True}]
+    seen = []
+    result = rbx1.Arm(url=console, token=FakeConsole.token).sort({"bolt": "tray"}, on_event=seen.append)
+    assert result == {"job": 3, "outcome": "done"}
+    assert [e["event"] for e in seen] == ["sort_started", "progress"]
 
 
 def test_http_errors_raise_their_class(console):
