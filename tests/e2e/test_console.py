@@ -190,6 +190,8 @@ def check_folded_phases(drv, pick):
     assert int(approach.group(2)) > 1 and float(approach.group(4)) > 0, approach.group(0)
     shown = """return [...document.querySelectorAll('#log li')].filter(li => li.dataset.cmd === 'pick' &&
                li.dataset.event === arguments[0]).map(li => li.offsetParent !== null)"""
+    drv.execute_script("document.getElementById('log-panel').scrollIntoView()")
+    drv.save_screenshot(str(SHOTS / "2-pick-log.png"))
     assert set(drv.execute_script(shown, "phase")) == {True}
     assert set(drv.execute_script(shown, "step_done")) == {False}, "per-step lines shown without 'every step'"
     drv.find_element(By.ID, "log-verbose").click()
@@ -198,7 +200,8 @@ def check_folded_phases(drv, pick):
     drv.execute_script("window.scrollTo(0, 0)")  # the clicks scrolled to the log: the next tests click the top
     planned = int(re.search(r"steps=(\d+)", next(t for e, t in pick if e == "planned")).group(1))
     progress = drv.find_element(By.ID, "motion-progress").text
-    assert re.match(rf"pick #\d+: done, {planned} of {planned} steps, \d+\.\d s$", progress), (progress, planned)
+    m = re.match(rf"pick #\d+: done, {planned} of {planned} steps, (\d+\.\d) s$", progress)
+    assert m and float(m.group(1)) > 0, (progress, planned)
 
 
 def test_estop_button_while_a_pick_waits(rig, browser):

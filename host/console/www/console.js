@@ -258,8 +258,9 @@ const STEP_EVENTS = new Set(['sent', 'step', 'step_done']);
 const folds = new Map();  // request number -> its fold: the phase being counted, the plan's step count
 function foldPhase(e) {
   let f = folds.get(e.req);
-  if (!f) folds.set(e.req, f = { name: null, count: 0, t0: 0, t1: 0, li: null, total: null, done: 0 });
-  const t = (e.t_ms || 0) / 1000;
+  if (!f) folds.set(e.req, f = { name: null, count: 0, t0: 0, t1: 0, li: null, total: null, done: 0, t: 0 });
+  if (e.t_ms !== undefined) f.t = e.t_ms / 1000;  // the final line has no time of its own: the last event's
+  const t = f.t;
   if (e.event === 'planned') f.total = e.steps, f.done = 0;
   if (e.event === 'sent' && e.step === 1 && f.total && f.done === f.total) f.total = null;  // a move after the plan
   if (e.event === 'step_done') {
