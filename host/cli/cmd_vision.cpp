@@ -11,6 +11,7 @@
 #include "draw.hpp"
 #include "image_io.hpp"
 #include "library.hpp"
+#include "scan_json.hpp"
 #include "vision.hpp"
 
 namespace rbx1::cli {
@@ -112,7 +113,7 @@ void add_detect(CLI::App& app, int& exit_code) {
     }
     if (*json) {
       for (const std::string& w : det.warnings) std::fprintf(stderr, "rbx1 detect: warning: %s\n", w.c_str());
-      std::printf("%s\n", vis->to_json(det).dump().c_str());
+      std::printf("%s\n", nlohmann::json(vis->scan(det)).dump().c_str());
     } else {
       std::fputs(vis->report(det).c_str(), stdout);
     }

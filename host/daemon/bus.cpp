@@ -77,9 +77,9 @@ std::shared_ptr<Subscription> Bus::subscribe(unsigned topics, size_t capacity) {
   return s;
 }
 
-uint64_t Bus::publish(Topic topic, nlohmann::json body) {
+uint64_t Bus::publish(Topic topic, nlohmann::json body, std::shared_ptr<const vision::Scan> scan) {
   std::vector<std::shared_ptr<Subscription>> to;
-  BusMessage m{topic, 0, nullptr};
+  BusMessage m{topic, 0, nullptr, std::move(scan)};
   {
     std::lock_guard lock(mu_);
     m.seq = ++seq_;

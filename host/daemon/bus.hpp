@@ -12,6 +12,10 @@
 
 #include <nlohmann/json.hpp>
 
+namespace rbx1::vision {
+struct Scan;
+}
+
 namespace rbx1::daemon {
 
 // What a subscriber can ask for. Each message carries its topic in "topic" ("status", "events", "scans").
@@ -21,10 +25,12 @@ const char* topic_name(Topic t);
 bool topic_from_name(const std::string& name, Topic& out);
 
 // One published message: its topic, a bus-wide sequence number and the JSON object (which has "topic" and "seq").
+// A scan also comes as the struct it was written from, for subscribers that want its numbers (ROS 2).
 struct BusMessage {
   Topic topic;
   uint64_t seq;
   std::shared_ptr<const nlohmann::json> body;
+  std::shared_ptr<const vision::Scan> scan;  // Topic::Scans only
 };
 
 class Bus;
@@ -60,7 +66,7 @@ class Bus {
   // topics: a mask of Topic bits.
   std::shared_ptr<Subscription> subscribe(unsigned topics, size_t capacity = kDefaultCapacity);
   // Adds "topic" and "seq" to body and hands it to every subscriber of the topic. Never blocks on a subscriber.
-  uint64_t publish(Topic topic, nlohmann::json body);
+  uint64_t publish(Topic topic, nlohmann::json body, std::shared_ptr<const vision::Scan> scan = nullptr);
   // The last status published (null before the first): a new subscriber's first status line.
   nlohmann::json last_status() const;
   size_t subscribers() const;

@@ -1,5 +1,6 @@
 // jobs_test.cpp - the cell jobs' parts without an arm: recipes (checks naming the offender, "*" and "unknown",
-// the recipes file), the choice of the next object (skip reasons, ranking), the requests' fields.
+// the recipes file), the choice of the next object from a scan's structs (skip reasons, the same object, ranking),
+// the requests' fields.
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -20,11 +21,20 @@ namespace {
 const std::set<std::string> kPlaces{"tray", "bin", "reject"};
 const std::set<std::string> kClasses{"bolt", "nut", "washer"};
 
-json object(int index, json label, double x, double y, bool feasible = true, json reason = nullptr,
-            bool touching = false) {
-  return {{"index", index}, {"label", label}, {"match_score", label.is_null() ? json(nullptr) : json(0.9)},
-          {"centroid_cm", {x, y}}, {"touching", touching},
-          {"grip", {{"opening_cm", 1.0}, {"angle_deg", 10.0}, {"feasible", feasible}, {"reason", reason}}}};
+using rbx1::vision::GripReason;
+
+rbx1::vision::ScanObject object(int index, std::optional<std::string> label, double x, double y, bool feasible = true,
+                                GripReason reason = GripReason::None, bool touching = false) {
+  rbx1::vision::ScanObject o;
+  o.index = index;
+  o.identity = {label, label ? std::optional(0.9) : std::nullopt};
+  o.centroid_cm = cv::Point2d(x, y);
+  o.touching = touching;
+  o.grip.opening_cm = 1.0;
+  o.grip.angle_deg = 10.0;
+  o.grip.feasible = feasible;
+  o.grip.reason = reason;
+  return o;
 }
 
 std::string read_all(const fs::path& p) {
@@ -50,9 +60,9 @@ TEST(Recipe, PlaceForUsesItsOwnKeyThenStarForIdentifiedOnly) {
   Recipe r{{"bolt", "tray"}, {"*", "bin"}};
   EXPECT_EQ(place_for(r, "bolt"), "tray");
   EXPECT_EQ(place_for(r, "nut"), "bin");
-  EXPECT_EQ(place_for(r, nullptr), std::nullopt);  // "*" is every identified class, not the unknown ones
+  EXPECT_EQ(place_for(r, std::nullopt), std::nullopt);  // "*" is every identified class, not the unknown ones
   r["unknown"] = "reject";
-  EXPECT_EQ(place_for(r, nullptr), "reject");
+  EXPECT_EQ(place_for(r, std::nullopt), "reject");
   EXPECT_EQ(place_for({{"bolt", "tray"}}, "nut"), std::nullopt);  // left on the table
 }
 
@@ -89,12 +99,13 @@ TEST(RecipeBook, SavesAtomicallyFindsByNameAndLeavesACorruptFileAlone) {
 }
 
 TEST(SortChoice, SkipsWithReasonsAndLeavesUnmappedClasses) {
-  json det{{"objects",
-            {object(1, "bolt", 5, 5), object(2, "nut", 6, 6, false, "too_wide"),
-             object(3, "washer", 7, 7, false, "finger_collision", true), object(4, nullptr, 8, 8),
-             object(5, "spring", 9, 9), object(6, "bolt", 3, 3), object(7, "bolt", 4, 1, true, nullptr, true)}}};
+  rbx1::vision::Scan det;
+  det.objects = {object(1, "bolt", 5, 5), object(2, "nut", 6, 6, false, GripReason::TooWide),
+                 object(3, "washer", 7, 7, false, GripReason::FingerCollision, true), object(4, std::nullopt, 8, 8),
+                 object(5, "spring", 9, 9), object(6, "bolt", 3, 3),
+                 object(7, "bolt", 4, 1, true, GripReason::None, true)};
   Recipe r{{"bolt", "tray"}, {"nut", "bin"}, {"washer", "bin"}};
-  Sorting s = sort_objects(det, r, {{"bolt", json::array({3.3, 3.2})}});
+  Sorting s = sort_objects(det, r, {{"bolt", cv::Point2d(3.3, 3.2)}});
   ASSERT_EQ(s.candidates.size(), 2u);
   EXPECT_EQ(s.candidates[0].index, 0u);
   EXPECT_FALSE(s.candidates[0].disturbs);
@@ -111,6 +122,34 @@ TEST(SortChoice, SkipsWithReasonsAndLeavesUnmappedClasses) {
   Sorting all = sort_objects(det, {{"*", "bin"}, {"unknown", "bin"}}, {});
   EXPECT_EQ(all.candidates.size(), 5u);
   EXPECT_TRUE(all.left.empty());
+}
+
+TEST(SortChoice, SkipDetailsComeFromTheGripsReason) {
+  rbx1::vision::Scan det;
+  det.objects = {object(1, "bolt", 5, 5, false, GripReason::TooWide, true),  // touching, but too wide anyway
+                 object(2, "bolt", 9, 9, false, GripReason::None)};          // infeasible without a named reason
+  Sorting s = sort_objects(det, {{"bolt", "tray"}}, {});
+  ASSERT_EQ(s.skips.size(), 2u);
+  EXPECT_EQ(s.skips[0].reason, "infeasible_grip");
+  EXPECT_EQ(s.skips[0].detail, "too_wide");
+  EXPECT_EQ(s.skips[1].reason, "infeasible_grip");
+  EXPECT_EQ(s.skips[1].detail, "no feasible grip");
+  EXPECT_TRUE(s.candidates.empty());
+}
+
+TEST(SortChoice, SameObjectIsTheNearestOfItsClassWithinACentimetre) {
+  rbx1::vision::Scan det;
+  det.objects = {object(1, "bolt", 5.0, 5.0), object(2, "bolt", 5.6, 5.0), object(3, "nut", 5.1, 5.0),
+                 object(4, std::nullopt, 5.05, 5.0)};
+  const auto* o = find_same(det, "bolt", cv::Point2d(5.4, 5.0));
+  ASSERT_TRUE(o);
+  EXPECT_EQ(o->index, 2);  // 0.2 cm away, not the first bolt 0.4 cm away, nor the nut nearer still
+  EXPECT_EQ(find_same(det, "unknown", cv::Point2d(5.0, 5.0))->index, 4);
+  EXPECT_FALSE(find_same(det, "bolt", cv::Point2d(7.0, 5.0)));  // 1.4 cm from the nearest bolt
+  EXPECT_TRUE(same_object(det.objects[0], "bolt", cv::Point2d(5.0, 6.0)));  // exactly 1 cm
+  EXPECT_FALSE(find_same(det, "bolt", std::nullopt));  // where it lay is unknown (uncalibrated)
+  det.objects[1].centroid_cm.reset();
+  EXPECT_EQ(find_same(det, "bolt", cv::Point2d(5.4, 5.0))->index, 1);  // an uncalibrated detection matches nothing
 }
 
 TEST(SortChoice, RankPrefersUndisturbingThenShortestTravel) {

@@ -13,6 +13,7 @@
 
 #include "draw.hpp"
 #include "locked_source.hpp"
+#include "scan_json.hpp"
 
 #include "board_limits.hpp"
 #include "joint_steps.hpp"
@@ -642,15 +643,14 @@ bool Machine::move_to(Reply& reply, const std::string& name, const arm::Joints& 
   return run_steps(reply, steps, result);
 }
 
-bool Machine::plan_pick(const nlohmann::json& detections, const nlohmann::json& object, const std::string& place,
+bool Machine::plan_pick(const vision::Scan& scan, const vision::ScanObject& object, const std::string& place,
                         std::vector<MotionStep>& steps, nlohmann::json& info, std::string& error) {
   rbx1_status_resp st{};
   {
     std::lock_guard lock(mutex_);
     if (last_status_) st = *last_status_;
   }
-  std::pair<int, int> size{detections["image"].value("width", 0), detections["image"].value("height", 0)};
-  return plan_pick_steps(config_.arm, st, object, size, place, steps, info, error);
+  return plan_pick_steps(config_.arm, st, object, scan.image, place, steps, info, error);
 }
 
 bool Machine::capture(Reply& reply, cv::Mat& frame) {
@@ -662,7 +662,7 @@ bool Machine::capture(Reply& reply, cv::Mat& frame) {
   return true;
 }
 
-bool Machine::capture_and_detect(Reply& reply, nlohmann::json& detections, std::string& report) {
+bool Machine::capture_and_detect(Reply& reply, vision::Scan& scan, std::string* report) {
   cv::Mat frame;
   if (!capture(reply, frame)) return false;
   int64_t captured_ns = mono_ns();
@@ -675,11 +675,13 @@ bool Machine::capture_and_detect(Reply& reply, nlohmann::json& detections, std::
     reply.error("vision_failed", error);
     return false;
   }
-  detections = vision_->to_json(det);
-  report = vision_->report(det);
-  nlohmann::json ev{{"objects", detections["objects"].size()}, {"report", report}, {"detections", detections}};
+  scan = vision_->scan(det);
+  const nlohmann::json detections = scan;  // written once for the event, the console and the bus
+  std::string text = vision_->report(det);
+  if (report) *report = text;
+  nlohmann::json ev{{"objects", scan.objects.size()}, {"report", text}, {"detections", detections}};
   nlohmann::json labels = nlohmann::json::array();
-  for (const auto& o : detections["objects"]) labels.push_back(o.value("label", nlohmann::json(nullptr)));
+  for (const auto& o : scan.objects) labels.push_back(o.identity.label ? nlohmann::json(*o.identity.label) : nullptr);
   ev["labels"] = labels;
   if (!config_.daemon.annotate.empty()) {
     std::string aerr;
@@ -698,7 +700,8 @@ bool Machine::capture_and_detect(Reply& reply, nlohmann::json& detections, std::
     last_detections_ = detections;
   }
   if (on_scan_) on_scan_(last_annotated_, detections);  // before the event
-  bus_.publish(Topic::Scans, {{"ts", iso_now()}, {"detections", detections}});
+  bus_.publish(Topic::Scans, {{"ts", iso_now()}, {"detections", detections}},
+               std::make_shared<const vision::Scan>(scan));
   reply.event("detected", ev);
   return true;
 }
@@ -708,10 +711,10 @@ bool Machine::capture_and_detect(Reply& reply, nlohmann::json& detections, std::
 void Machine::job_scan(Reply& reply) {
   if (!ready(reply)) return;
   if (!move_to(reply, "scan_pose", config_.arm.scan)) return;
-  nlohmann::json detections;
+  vision::Scan scan;
   std::string report;
-  if (!capture_and_detect(reply, detections, report)) return;
-  reply.result({{"objects", detections["objects"].size()}, {"report", report}, {"detections", detections}});
+  if (!capture_and_detect(reply, scan, &report)) return;
+  reply.result({{"objects", scan.objects.size()}, {"report", report}, {"detections", scan}});
 }
 
 void Machine::job_home(Reply& reply) {
@@ -781,19 +784,15 @@ void Machine::job_pick(Reply& reply, const std::string& name, const std::string&
   if (!ready(reply)) return;
   // The paper's sequence: scan pose, capture, detect, identify.
   if (!move_to(reply, "scan_pose", config_.arm.scan)) return;
-  nlohmann::json detections;
-  std::string report;
-  if (!capture_and_detect(reply, detections, report)) return;
-  const nlohmann::json* best = nullptr;
+  vision::Scan scan;
+  if (!capture_and_detect(reply, scan)) return;
+  const vision::ScanObject* best = nullptr;
   std::string seen;
-  for (const auto& o : detections["objects"]) {
-    const auto& label = o["label"];
-    if (label.is_string()) {
-      seen += (seen.empty() ? "" : ", ") + label.get<std::string>();
-      if (label.get<std::string>() == name &&
-          (!best || o.value("match_score", 0.0) > best->value("match_score", 0.0)))
-        best = &o;
-    }
+  for (const auto& o : scan.objects) {
+    if (!o.identity.label) continue;
+    seen += (seen.empty() ? "" : ", ") + *o.identity.label;
+    if (*o.identity.label == name && (!best || o.identity.score.value_or(0) > best->identity.score.value_or(0)))
+      best = &o;
   }
   if (!best) {
     // Absent: back home, then report the error naming the object (the paper's rule).
@@ -803,12 +802,12 @@ void Machine::job_pick(Reply& reply, const std::string& name, const std::string&
                                      (seen.empty() ? std::string(" (no known object seen)") : " (seen: " + seen + ")"));
     return;
   }
-  reply.event("identified", {{"name", name}, {"index", (*best)["index"]}, {"match_score", (*best)["match_score"]},
-                             {"centroid_cm", (*best)["centroid_cm"]}, {"grip", (*best)["grip"]}});
+  reply.event("identified", {{"name", name}, {"index", best->index}, {"match_score", vision::number_json(best->identity.score)},
+                             {"centroid_cm", vision::point_json(best->centroid_cm)}, {"grip", best->grip}});
   std::vector<MotionStep> steps;
   nlohmann::json plan_info;
   std::string error;
-  if (!plan_pick(detections, *best, place, steps, plan_info, error)) {
+  if (!plan_pick(scan, *best, place, steps, plan_info, error)) {
     reply.event("unreachable", {{"name", name}, {"reason", error}});
     if (!move_to(reply, "home", config_.arm.home)) return;
     reply.error("plan_failed", "cannot pick \"" + name + "\": " + error);

@@ -76,17 +76,18 @@ class Machine {
   bool move_to(Reply& reply, const std::string& name, const arm::Joints& pose, MotionResult& result);
   void hold(const std::string& why);  // mutex_ held: not ready until clear_fault
   bool run_steps(Reply& reply, const std::vector<MotionStep>& steps, MotionResult& result);
-  // The pick of `object` from `detections` to `place`, planned from the last firmware status (pick_plan.hpp).
-  bool plan_pick(const nlohmann::json& detections, const nlohmann::json& object, const std::string& place,
+  // The pick of `object` (one of scan's objects) to `place`, planned from the last firmware status (pick_plan.hpp).
+  bool plan_pick(const vision::Scan& scan, const vision::ScanObject& object, const std::string& place,
                  std::vector<MotionStep>& steps, nlohmann::json& info, std::string& error);
-  // Capture + detect at the scan pose; false after reply.error.
   std::string estop_source();  // who latched the last e-stop ("firmware" when no request or input of ours did)
   // One camera frame, or a camera_failed error on reply (false).
   bool capture(Reply& reply, cv::Mat& frame);
-  bool capture_and_detect(Reply& reply, nlohmann::json& detections, std::string& report);
+  // Capture + detect (the arm at the scan pose): the scan as a struct for the job; as JSON (scan_json.hpp, written
+  // once) to the detected event, the console and the bus. report: the paper's Figure 21. false after reply.error.
+  bool capture_and_detect(Reply& reply, vision::Scan& scan, std::string* report = nullptr);
   // [daemon] verify_pick (pick_check.cpp): after a pick, a scan must no longer show the object where it was;
   // else pick_failed and, up to pick_retries times, a new pick from the fresh detection. false after reply.error.
-  bool check_pick(Reply& reply, const std::string& name, const std::string& place, nlohmann::json picked,
+  bool check_pick(Reply& reply, const std::string& name, const std::string& place, vision::ScanObject picked,
                   nlohmann::json& result);
   bool ready(Reply& reply);
   // The operator's jobs (operator_jobs.cpp) and the workspace calibration (workspace_jobs.cpp).

@@ -1,43 +1,22 @@
 // pick_check.cpp - the daemon checks its own work: after a pick, a fresh scan must no longer show the object
 // where it was picked from; else a pick_failed event and, as configured, a new pick from that fresh detection.
-#include <cmath>
-
 #include "machine.hpp"
 #include "pick_plan.hpp"
+#include "scan_json.hpp"
+#include "sort_choice.hpp"
 
 namespace rbx1::daemon {
 
-namespace {
-// A detection of the same label this close to where the object was picked from is the object itself: objects
-// are laid out apart by more than a finger (the grip check keeps a finger's width to every neighbour).
-constexpr double kStillThereCm = 1.0;
-
-const nlohmann::json* still_there(const nlohmann::json& detections, const std::string& name, const nlohmann::json& c) {
-  const nlohmann::json* best = nullptr;
-  double best_d = kStillThereCm;
-  for (const auto& o : detections["objects"]) {
-    if (!o["label"].is_string() || o["label"].get<std::string>() != name || !o["centroid_cm"].is_array()) continue;
-    double d = std::hypot(o["centroid_cm"][0].get<double>() - c[0].get<double>(),
-                          o["centroid_cm"][1].get<double>() - c[1].get<double>());
-    if (d <= best_d) {
-      best_d = d;
-      best = &o;
-    }
-  }
-  return best;
-}
-}  // namespace
-
-bool Machine::check_pick(Reply& reply, const std::string& name, const std::string& place, nlohmann::json picked,
+bool Machine::check_pick(Reply& reply, const std::string& name, const std::string& place, vision::ScanObject picked,
                          nlohmann::json& result) {
   for (int attempt = 1;; ++attempt) {
     if (!move_to(reply, "check_scan", config_.arm.scan)) return false;
-    nlohmann::json detections;
-    std::string report;
-    if (!capture_and_detect(reply, detections, report)) return false;
-    const nlohmann::json* left = still_there(detections, name, picked["centroid_cm"]);
+    vision::Scan scan;
+    if (!capture_and_detect(reply, scan)) return false;
+    // The object still within 1 cm of where it was picked from is the object itself: the pick did not take it.
+    const vision::ScanObject* left = find_same(scan, name, picked.centroid_cm);
     if (!left) {
-      reply.event("pick_verified", {{"name", name}, {"attempt", attempt}, {"centroid_cm", picked["centroid_cm"]}});
+      reply.event("pick_verified", {{"name", name}, {"attempt", attempt}, {"centroid_cm", vision::point_json(picked.centroid_cm)}});
       if (!move_to(reply, "home", config_.arm.home)) return false;
       result["verified"] = true;
       result["attempts"] = attempt;
@@ -45,7 +24,7 @@ bool Machine::check_pick(Reply& reply, const std::string& name, const std::strin
     }
     bool retry = attempt <= config_.daemon.pick_retries;
     reply.event("pick_failed", {{"name", name}, {"attempt", attempt}, {"reason", "still_there"},
-                                {"centroid_cm", (*left)["centroid_cm"]}, {"retry", retry}});
+                                {"centroid_cm", vision::point_json(left->centroid_cm)}, {"retry", retry}});
     if (!retry) {
       if (!move_to(reply, "home", config_.arm.home)) return false;
       reply.error("pick_failed", "\"" + name + "\" is still where it was picked from after " +
@@ -57,7 +36,7 @@ bool Machine::check_pick(Reply& reply, const std::string& name, const std::strin
     std::vector<MotionStep> steps;
     nlohmann::json plan_info;
     std::string error;
-    if (!plan_pick(detections, picked, place, steps, plan_info, error)) {
+    if (!plan_pick(scan, picked, place, steps, plan_info, error)) {
       if (!move_to(reply, "home", config_.arm.home)) return false;
       reply.error("pick_failed", "cannot pick \"" + name + "\" again: " + error);
       return false;

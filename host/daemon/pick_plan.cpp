@@ -1,4 +1,4 @@
-// pick_plan.cpp - detection JSON -> arm::PickObject -> arm::plan_pick waypoints -> MotionStep queue entries.
+// pick_plan.cpp - vision::ScanObject -> arm::PickObject -> arm::plan_pick waypoints -> MotionStep queue entries.
 #include "pick_plan.hpp"
 
 #include <cmath>
@@ -41,39 +41,39 @@ bool plan_pose_move(const arm::ArmConfig& cfg, const rbx1_status_resp& current, 
   return true;
 }
 
-bool plan_pick_steps(const arm::ArmConfig& cfg, const rbx1_status_resp& current, const nlohmann::json& object,
-                     std::pair<int, int> image_size, const std::string& place, std::vector<MotionStep>& out, nlohmann::json& info, std::string& error) {
-  const auto& c = object["centroid_cm"];
-  const auto& grip = object["grip"];
-  if (!c.is_array() || c.size() != 2 || !c[0].is_number() || !grip.is_object() || !grip["opening_cm"].is_number()) {
+bool plan_pick_steps(const arm::ArmConfig& cfg, const rbx1_status_resp& current, const vision::ScanObject& object,
+                     cv::Size image_size, const std::string& place, std::vector<MotionStep>& out, nlohmann::json& info,
+                     std::string& error) {
+  const vision::Grip& grip = object.grip;
+  if (!object.centroid_cm || !grip.opening_cm) {
     error = "the detection has no table coordinates (vision is uncalibrated: set [vision] px_per_cm or calibration)";
     return false;
   }
-  if (!grip.value("feasible", false)) {
-    error = "no feasible grip (opening " + std::to_string(grip["opening_cm"].get<double>()) + " cm)";
+  if (!grip.feasible) {
+    error = "no feasible grip (opening " + std::to_string(*grip.opening_cm) + " cm)";
     return false;
   }
   arm::PickObject obj;
   if (cfg.camera.pixel_map) {
     // The workspace calibration: straight from the image's pixels to the base frame.
-    auto px = [](const nlohmann::json& v) { return Eigen::Vector2d(v[0].get<double>(), v[1].get<double>()); };
+    auto px = [](cv::Point2d p) { return Eigen::Vector2d(p.x, p.y); };
     const auto& m = *cfg.camera.pixel_map;
-    if (image_size.first != m.width || image_size.second != m.height) {
+    if (image_size.width != m.width || image_size.height != m.height) {
       error = "the workspace calibration is for " + std::to_string(m.width) + "x" + std::to_string(m.height) +
-              " frames, the camera gives " + std::to_string(image_size.first) + "x" + std::to_string(image_size.second) +
+              " frames, the camera gives " + std::to_string(image_size.width) + "x" + std::to_string(image_size.height) +
               " (rbx1 calibrate-workspace again)";
       return false;
     }
-    arm::TablePoint p = arm::pixels_to_base(cfg, px(object["centroid_px"]), px(grip["p1_px"]), px(grip["p2_px"]), obj.opening_mm);
+    arm::TablePoint p = arm::pixels_to_base(cfg, px(object.centroid_px), px(grip.p1), px(grip.p2), obj.opening_mm);
     obj.x_mm = p.x_mm;
     obj.y_mm = p.y_mm;
     obj.yaw_deg = p.yaw_deg;
   } else {
-    arm::TablePoint p = arm::vision_to_base(cfg, {c[0].get<double>(), c[1].get<double>()}, grip["angle_deg"].get<double>());
+    arm::TablePoint p = arm::vision_to_base(cfg, {object.centroid_cm->x, object.centroid_cm->y}, grip.angle_deg);
     obj.x_mm = p.x_mm;
     obj.y_mm = p.y_mm;
     obj.yaw_deg = p.yaw_deg;
-    obj.opening_mm = grip["opening_cm"].get<double>() * 10.0;
+    obj.opening_mm = *grip.opening_cm * 10.0;
   }
   std::vector<arm::Waypoint> waypoints;
   if (!arm::plan_pick(cfg, steps_of(current), obj, place, waypoints, error)) return false;

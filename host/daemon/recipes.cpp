@@ -61,10 +61,9 @@ bool check_recipe(const Recipe& r, const std::set<std::string>& places, const st
   return true;
 }
 
-std::optional<std::string> place_for(const Recipe& r, const nlohmann::json& label) {
-  std::string cls = label.is_string() ? label.get<std::string>() : kUnknownClass;
-  if (auto it = r.find(cls); it != r.end()) return it->second;
-  if (label.is_string())
+std::optional<std::string> place_for(const Recipe& r, const std::optional<std::string>& label) {
+  if (auto it = r.find(label.value_or(kUnknownClass)); it != r.end()) return it->second;
+  if (label)
     if (auto it = r.find(kAnyClass); it != r.end()) return it->second;
   return std::nullopt;
 }

@@ -23,9 +23,9 @@ nlohmann::json recipe_json(const Recipe& r);
 // offender and what is known.
 bool check_recipe(const Recipe& r, const std::set<std::string>& places, const std::set<std::string>& classes,
                   std::string& error);
-// Where an object with this label goes (label null: unknown): its own key, else "*" for an identified class.
+// Where an object with this label goes (no label: unknown): its own key, else "*" for an identified class.
 // Nothing: the recipe leaves it on the table.
-std::optional<std::string> place_for(const Recipe& r, const nlohmann::json& label);
+std::optional<std::string> place_for(const Recipe& r, const std::optional<std::string>& label);
 
 // The saved recipes (dir/recipes.json). Reads fresh on each call: the file is small and the console may edit it.
 class RecipeBook {

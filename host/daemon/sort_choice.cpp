@@ -1,4 +1,4 @@
-// sort_choice.cpp - the sort's choice of the next object: skip reasons from the detection, the ranking.
+// sort_choice.cpp - the sort's choice of the next object: skip reasons from the scan, the ranking.
 #include "sort_choice.hpp"
 
 #include <algorithm>
@@ -7,27 +7,37 @@
 namespace rbx1::daemon {
 
 namespace {
-constexpr double kSameObjectCm = 1.0;  // as pick_check.cpp's still_there
+// Objects are laid out apart by more than a finger (the grip check keeps a finger's width to every neighbour).
+constexpr double kSameObjectCm = 1.0;
+
+// How far o lies from c (cm); none when either is unknown (uncalibrated).
+std::optional<double> distance_cm(const vision::ScanObject& o, const std::optional<cv::Point2d>& c) {
+  if (!o.centroid_cm || !c) return std::nullopt;
+  return std::hypot(o.centroid_cm->x - c->x, o.centroid_cm->y - c->y);
+}
+}  // namespace
+
+std::string class_of(const vision::ScanObject& o) { return o.identity.label.value_or(kUnknownClass); }
+
+bool same_object(const vision::ScanObject& o, const std::string& cls, const std::optional<cv::Point2d>& c) {
+  auto d = distance_cm(o, c);
+  return class_of(o) == cls && d && *d <= kSameObjectCm;
 }
 
-std::string class_of(const nlohmann::json& object) {
-  const auto& label = object.value("label", nlohmann::json(nullptr));
-  return label.is_string() ? label.get<std::string>() : kUnknownClass;
+const vision::ScanObject* find_same(const vision::Scan& scan, const std::string& cls,
+                                    const std::optional<cv::Point2d>& c) {
+  const vision::ScanObject* best = nullptr;
+  for (const auto& o : scan.objects)
+    if (same_object(o, cls, c) && (!best || *distance_cm(o, c) <= *distance_cm(*best, c))) best = &o;
+  return best;
 }
 
-bool same_object(const nlohmann::json& o, const std::string& cls, const nlohmann::json& c) {
-  const auto& oc = o.value("centroid_cm", nlohmann::json(nullptr));
-  if (class_of(o) != cls || !oc.is_array() || !c.is_array() || oc.size() != 2 || c.size() != 2) return false;
-  return std::hypot(oc[0].get<double>() - c[0].get<double>(), oc[1].get<double>() - c[1].get<double>()) <= kSameObjectCm;
-}
-
-Sorting sort_objects(const nlohmann::json& detections, const Recipe& recipe, const std::vector<SeenObject>& given_up) {
+Sorting sort_objects(const vision::Scan& scan, const Recipe& recipe, const std::vector<SeenObject>& given_up) {
   Sorting s;
-  const auto& objects = detections["objects"];
-  for (size_t i = 0; i < objects.size(); ++i) {
-    const auto& o = objects[i];
+  for (size_t i = 0; i < scan.objects.size(); ++i) {
+    const vision::ScanObject& o = scan.objects[i];
     std::string cls = class_of(o);
-    auto place = place_for(recipe, o.value("label", nlohmann::json(nullptr)));
+    auto place = place_for(recipe, o.identity.label);
     if (!place) {
       // An identified class the recipe does not map stays on the table by design; an unidentified one is a skip.
       if (cls == kUnknownClass) s.skips.push_back({i, cls, "unknown_class", "no library entry matches it"});
@@ -40,17 +50,15 @@ Sorting sort_objects(const nlohmann::json& detections, const Recipe& recipe, con
       s.skips.push_back({i, cls, "gave_up", "its pick failed every attempt"});
       continue;
     }
-    const auto& grip = o.value("grip", nlohmann::json::object());
-    bool touching = o.value("touching", false);
-    if (!grip.value("feasible", false)) {
-      std::string why = grip.value("reason", nlohmann::json(nullptr)).is_string() ? grip["reason"].get<std::string>() : "";
-      if (touching && why == "finger_collision")
+    if (!o.grip.feasible) {
+      const char* why = vision::grip_reason_name(o.grip.reason);
+      if (o.touching && o.grip.reason == vision::GripReason::FingerCollision)
         s.skips.push_back({i, cls, "touching", "a neighbour leaves no room for a finger"});
       else
-        s.skips.push_back({i, cls, "infeasible_grip", why.empty() ? "no feasible grip" : why});
+        s.skips.push_back({i, cls, "infeasible_grip", why ? why : "no feasible grip"});
       continue;
     }
-    s.candidates.push_back({i, cls, *place, touching, 0});
+    s.candidates.push_back({i, cls, *place, o.touching, 0});
   }
   return s;
 }

@@ -1,24 +1,24 @@
-// sort_choice.hpp - which object a sort or clear picks next: the detection's objects under a recipe, those that
-// cannot be picked safely skipped with a reason, the rest ranked (disturbs no neighbour first, then shortest travel).
+// sort_choice.hpp - which object a sort or clear picks next: the scan's objects under a recipe, those that cannot
+// be picked safely skipped with a reason, the rest ranked (disturbs no neighbour first, then shortest travel).
 #pragma once
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
 #include "recipes.hpp"
+#include "types.hpp"
 
 namespace rbx1::daemon {
 
 // An object known by its class and where it lay (centroid_cm): objects do not move unless picked.
 struct SeenObject {
   std::string cls;
-  nlohmann::json centroid_cm;
+  std::optional<cv::Point2d> centroid_cm;
 };
 
 struct Candidate {
-  size_t index = 0;       // into detections["objects"]
+  size_t index = 0;       // into the scan's objects
   std::string cls;        // label or "unknown"
   std::string place;
   bool disturbs = false;  // split from a neighbour it touches: lifting it may drag the neighbour along
@@ -38,12 +38,15 @@ struct Sorting {
   std::map<std::string, int> left;    // classes the recipe does not map, left on the table
 };
 
-// A detection of cls within 1 cm of centroid_cm: the same object (objects lie apart by more than a finger).
-bool same_object(const nlohmann::json& object, const std::string& cls, const nlohmann::json& centroid_cm);
-std::string class_of(const nlohmann::json& object);  // its label, or "unknown"
+// A scanned object of cls within 1 cm of centroid_cm: the same object (objects lie apart by more than a finger).
+bool same_object(const vision::ScanObject& object, const std::string& cls, const std::optional<cv::Point2d>& centroid_cm);
+// Of the scan's objects of cls, the nearest to centroid_cm within that distance; null when none.
+const vision::ScanObject* find_same(const vision::Scan& scan, const std::string& cls,
+                                    const std::optional<cv::Point2d>& centroid_cm);
+std::string class_of(const vision::ScanObject& object);  // its label, or "unknown"
 
-// The objects of detections under recipe; those matching given_up are skipped ("gave_up").
-Sorting sort_objects(const nlohmann::json& detections, const Recipe& recipe, const std::vector<SeenObject>& given_up);
+// The objects of the scan under recipe; those matching given_up are skipped ("gave_up").
+Sorting sort_objects(const vision::Scan& scan, const Recipe& recipe, const std::vector<SeenObject>& given_up);
 // Candidates that disturb no neighbour first, then the shortest planned travel; ties by detection order.
 void rank(std::vector<Candidate>& candidates);
 

@@ -13,6 +13,7 @@
 #include "machine.hpp"
 #include "pick_plan.hpp"
 #include "recipes.hpp"
+#include "scan_json.hpp"
 #include "sort_choice.hpp"
 
 namespace rbx1::daemon {
@@ -23,11 +24,6 @@ using nlohmann::json;
 namespace {
 double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 double round1(double v) { return std::round(v * 10) / 10; }
-std::optional<double> number_at(const json& j, const char* key) {
-  auto it = j.find(key);
-  if (it == j.end() || !it->is_number()) return std::nullopt;
-  return it->get<double>();
-}
 }  // namespace
 
 // One sort or clear from its first scan to its summary. Each cycle: a scan at the scan pose (which also judges the
@@ -47,7 +43,7 @@ class SortRun {
     std::string outcome;
     while (outcome.empty()) {
       m_.job_deadline_ns_ = now_ns() + int64_t(m_.config_.daemon.job_timeout_s * 1e9);  // per cycle
-      json detections;
+      vision::Scan detections;
       if (!scan(detections)) return end_failed();
       if (pending_) judge(detections);
       if (m_.job_control_ == Machine::JobControl::Pause) {
@@ -87,7 +83,7 @@ class SortRun {
                               {"rate_per_min", elapsed > 0 ? round1(picked_total_ * 60 / elapsed) : 0.0}});
   }
 
-  bool scan(json& detections) {
+  bool scan(vision::Scan& detections) {
     progress("scan");
     auto t = Clock::now();
     MotionResult moved;
@@ -95,26 +91,23 @@ class SortRun {
       if (!moved.code.empty()) fail_code_ = moved.code;
       return false;
     }
-    std::string report;
-    if (!m_.capture_and_detect(reply_, detections, report)) return false;
+    if (!m_.capture_and_detect(reply_, detections)) return false;
     scan_ms_ = ms_since(t);
     scan_id_.reset();
     if (!m_.history_) return true;
     std::vector<unsigned char> jpeg;
     if (!m_.last_annotated_.empty()) cv::imencode(".jpg", m_.last_annotated_, jpeg, {cv::IMWRITE_JPEG_QUALITY, 80});
     std::string error;
-    if (int64_t id = m_.history_->add_scan(job_, int(detections["objects"].size()), jpeg, error)) scan_id_ = id;
+    if (int64_t id = m_.history_->add_scan(job_, int(detections.objects.size()), jpeg, error)) scan_id_ = id;
     if (!error.empty()) spdlog::warn("history: {}", error);
     return true;
   }
 
   // The pick before this scan: the object still where it was picked from is a failed attempt.
-  void judge(const json& detections) {
+  void judge(const vision::Scan& detections) {
     Pending p = std::move(*pending_);
     pending_.reset();
-    const json* left = nullptr;
-    for (const auto& o : detections["objects"])
-      if (same_object(o, p.object.cls, p.object.centroid_cm)) left = &o;
+    const vision::ScanObject* left = find_same(detections, p.object.cls, p.object.centroid_cm);
     p.row.phases_ms["check"] = round1(scan_ms_);
     p.row.cycle_ms = round1(ms_since(p.chosen));
     if (left) {
@@ -122,18 +115,18 @@ class SortRun {
       p.row.reason = "still_there";
       ++failed_;
       bool retry = p.row.attempt <= m_.config_.daemon.pick_retries;
-      p.object.centroid_cm = (*left)["centroid_cm"];
+      p.object.centroid_cm = left->centroid_cm;
       if (retry) tries_.push_back({p.object, p.row.attempt});
       else given_up_.push_back(p.object);
       reply_.event("pick_failed", {{"name", p.object.cls}, {"attempt", p.row.attempt}, {"reason", "still_there"},
-                                   {"centroid_cm", p.object.centroid_cm}, {"retry", retry}});
+                                   {"centroid_cm", vision::point_json(p.object.centroid_cm)}, {"retry", retry}});
     } else {
       p.row.outcome = "picked";
       ++picked_[p.object.cls][p.place];
       ++picked_total_;
       left_ = std::max(0, left_ - 1);  // until the next choice counts again
       reply_.event("pick_verified", {{"name", p.object.cls}, {"attempt", p.row.attempt}, {"place", p.place},
-                                     {"centroid_cm", p.object.centroid_cm}, {"cycle_ms", p.row.cycle_ms}});
+                                     {"centroid_cm", vision::point_json(p.object.centroid_cm)}, {"cycle_ms", p.row.cycle_ms}});
     }
     write(p.row);
   }
@@ -161,7 +154,7 @@ class SortRun {
     return true;
   }
 
-  int attempt_of(const json& o) const {
+  int attempt_of(const vision::ScanObject& o) const {
     int n = 0;
     for (const auto& [seen, a] : tries_)
       if (same_object(o, seen.cls, seen.centroid_cm)) n = std::max(n, a);
@@ -169,23 +162,23 @@ class SortRun {
   }
 
   // New skips are reported once per object (an event and a history row); the last scan's skips go to the summary.
-  void report_skips(const json& objects, const std::vector<Skip>& skips) {
+  void report_skips(const std::vector<vision::ScanObject>& objects, const std::vector<Skip>& skips) {
     last_skips_ = json::array();
     for (const auto& s : skips) {
-      const json& o = objects[s.index];
-      json entry{{"class", s.cls}, {"reason", s.reason}, {"detail", s.detail}, {"centroid_cm", o["centroid_cm"]}};
+      const vision::ScanObject& o = objects[s.index];
+      json entry{{"class", s.cls}, {"reason", s.reason}, {"detail", s.detail}, {"centroid_cm", vision::point_json(o.centroid_cm)}};
       last_skips_.push_back(entry);
       bool known = false;
       for (const auto& r : reported_)
         if (same_object(o, r.cls, r.centroid_cm)) known = true;
       if (known) continue;
-      reported_.push_back({s.cls, o["centroid_cm"]});
-      entry["index"] = o["index"];
+      reported_.push_back({s.cls, o.centroid_cm});
+      entry["index"] = o.index;
       reply_.event("skipped", entry);
       history::PickRow row;
       row.job = job_;
       row.cls = s.cls;
-      row.match_score = number_at(o, "match_score");
+      row.match_score = o.identity.score;
       row.outcome = "skipped";
       row.reason = s.reason + (s.detail.empty() ? "" : ": " + s.detail);
       row.scan = scan_id_;
@@ -194,7 +187,7 @@ class SortRun {
   }
 
   // Choose and pick the next object; outcome "done" when nothing mapped is left. false after reply.error.
-  bool pick_next(const json& detections, std::string& outcome) {
+  bool pick_next(const vision::Scan& detections, std::string& outcome) {
     progress("choose");
     auto chosen_at = Clock::now();
     Sorting s = sort_objects(detections, recipe_, given_up_);
@@ -203,12 +196,12 @@ class SortRun {
       std::vector<MotionStep> steps;
       json info;
     };
-    std::vector<Planned> plans(detections["objects"].size());
+    std::vector<Planned> plans(detections.objects.size());
     std::vector<Candidate> reachable;
     for (auto& c : s.candidates) {
       std::string error;
       Planned& p = plans[c.index];
-      if (!m_.plan_pick(detections, detections["objects"][c.index], c.place, p.steps, p.info, error)) {
+      if (!m_.plan_pick(detections, detections.objects[c.index], c.place, p.steps, p.info, error)) {
         s.skips.push_back({c.index, c.cls, "unreachable", error});
         continue;
       }
@@ -220,7 +213,7 @@ class SortRun {
       for (const auto& w : p.info["waypoints"]) c.travel_ms += w.value("duration_ms", 0.0);
       reachable.push_back(c);
     }
-    report_skips(detections["objects"], s.skips);
+    report_skips(detections.objects, s.skips);
     left_ = int(reachable.size());
     if (reachable.empty()) {
       outcome = "done";
@@ -228,19 +221,19 @@ class SortRun {
     }
     rank(reachable);
     const Candidate& c = reachable.front();
-    const json& o = detections["objects"][c.index];
+    const vision::ScanObject& o = detections.objects[c.index];
     Planned& plan = plans[c.index];
     double plan_ms = ms_since(chosen_at);
-    Pending p{{c.cls, o["centroid_cm"]}, c.place, {}, chosen_at};
+    Pending p{{c.cls, o.centroid_cm}, c.place, {}, chosen_at};
     p.row.job = job_;
     p.row.cls = c.cls;
-    p.row.match_score = number_at(o, "match_score");
-    p.row.grip_opening_cm = number_at(o["grip"], "opening_cm");
-    p.row.grip_angle_deg = number_at(o["grip"], "angle_deg");
+    p.row.match_score = o.identity.score;
+    p.row.grip_opening_cm = o.grip.opening_cm;
+    p.row.grip_angle_deg = o.grip.angle_deg;
     p.row.place = c.place;
     p.row.attempt = attempt_of(o);
     p.row.scan = scan_id_;
-    reply_.event("chosen", {{"name", c.cls}, {"index", o["index"]}, {"place", c.place}, {"attempt", p.row.attempt},
+    reply_.event("chosen", {{"name", c.cls}, {"index", o.index}, {"place", c.place}, {"attempt", p.row.attempt},
                             {"disturbs", c.disturbs}, {"travel_ms", round1(c.travel_ms)}, {"candidates", left_}});
     plan.info["steps"] = plan.steps.size();
     plan.info["attempt"] = p.row.attempt;

@@ -78,4 +78,27 @@ struct DetectedObject {
   bool touching = false;  // split from a neighbour it touched (its grip checks that neighbour's clearance)
 };
 
+// What a scan reports: one object of `rbx1 detect --json`'s "objects" (README.md "JSON"), the pipeline's figures
+// rounded as the document prints them (Vision::scan), so that what the daemon plans from is exactly what its
+// clients are shown. scan_json.hpp writes it; a new field is one member here, one line there.
+struct ScanObject {
+  int index = 0;                           // detection order, 1-based
+  Identity identity;                       // score only with a label (below the threshold: unknown, no score)
+  cv::Point2d centroid_px;
+  std::optional<cv::Point2d> centroid_cm;  // calibrated only
+  long area_px = 0;
+  int edge_points = 0;
+  Pose pose;                               // orientation, axis line, elongation
+  Grip grip;                               // opening_cm calibrated only; reason: why not feasible
+  bool touching = false;
+};
+
+// One frame's scan: the whole `rbx1 detect --json` document.
+struct Scan {
+  cv::Size image;
+  std::optional<double> px_per_cm;         // at the frame's centre; calibrated only
+  std::vector<ScanObject> objects;
+  std::vector<std::string> warnings;       // why the objects may be wrong or missing (written only when some)
+};
+
 }  // namespace rbx1::vision

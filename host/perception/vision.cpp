@@ -1,17 +1,18 @@
-// vision.cpp - Vision: loads the background, library and scale once, then turns frames into detections.
+// vision.cpp - Vision: loads the background, library and scale once, then turns frames into detections and scans.
 #include "vision.hpp"
 
 #include <cmath>
 #include <cstdio>
 
 #include "image_io.hpp"
+#include "scan_json.hpp"
 
 namespace rbx1::vision {
 namespace {
 
 // Rounds to a multiple of q (a power of ten), so the JSON prints short decimals.
 double round_to(double v, double q) { return std::round(v / q) / std::round(1 / q); }
-nlohmann::json pt(cv::Point2d p, double q) { return {round_to(p.x, q), round_to(p.y, q)}; }
+cv::Point2d pt(cv::Point2d p, double q) { return {round_to(p.x, q), round_to(p.y, q)}; }
 
 }  // namespace
 
@@ -132,43 +133,41 @@ bool Vision::process(const cv::Mat& frame, nlohmann::json& result, std::string& 
   Detection det;
   cv::Mat processed;
   if (!run(frame, det, processed, error)) return false;
-  result = to_json(det);
+  result = scan(det);
   return true;
 }
 
-nlohmann::json Vision::to_json(const Detection& det) const {
-  using nlohmann::json;
-  json doc;
-  doc["image"] = {{"width", det.size.width}, {"height", det.size.height}};
+Scan Vision::scan(const Detection& det) const {
+  Scan out;
+  out.image = det.size;
   cv::Point2d centre((det.size.width - 1) / 2.0, (det.size.height - 1) / 2.0);
-  doc["px_per_cm"] = scale_ ? json(round_to(scale_->px_per_cm_at(centre), 1e-4)) : json(nullptr);
-  doc["objects"] = json::array();
-  for (const DetectedObject& o : det.objects) {
-    json j;
-    j["index"] = o.index;
-    j["label"] = o.identity.label ? json(*o.identity.label) : json(nullptr);
-    j["match_score"] = o.identity.label ? json(round_to(*o.identity.score, 1e-4)) : json(nullptr);
-    j["centroid_px"] = pt(o.geometry.centroid, 1e-3);
-    j["centroid_cm"] = o.centroid_cm ? pt(*o.centroid_cm, 1e-4) : json(nullptr);
-    j["area_px"] = std::lround(o.geometry.area_px);
-    j["edge_points"] = o.geometry.edge_pixels;
-    j["orientation_deg"] = round_to(o.pose.orientation_deg, 1e-3);
-    j["axis_line"] = {{"slope", o.pose.slope ? json(round_to(*o.pose.slope, 1e-5)) : json(nullptr)},
-                      {"intercept", o.pose.intercept ? json(round_to(*o.pose.intercept, 1e-3)) : json(nullptr)}};
-    j["elongation"] = round_to(o.pose.elongation, 1e-3);
-    j["elongated"] = o.pose.elongated;
-    j["grip"] = {{"p1_px", pt(o.grip.p1, 1e-3)},
-                 {"p2_px", pt(o.grip.p2, 1e-3)},
-                 {"opening_px", round_to(o.grip.opening_px, 1e-3)},
-                 {"opening_cm", o.grip.opening_cm ? json(round_to(*o.grip.opening_cm, 1e-4)) : json(nullptr)},
-                 {"angle_deg", round_to(o.grip.angle_deg, 1e-3)},
-                 {"feasible", o.grip.feasible},
-                 {"reason", o.grip.feasible ? json(nullptr) : json(grip_reason_name(o.grip.reason))}};
-    j["touching"] = o.touching;
-    doc["objects"].push_back(j);
+  if (scale_) out.px_per_cm = round_to(scale_->px_per_cm_at(centre), 1e-4);
+  auto round_opt = [](const std::optional<double>& v, double q) { return v ? std::optional(round_to(*v, q)) : std::nullopt; };
+  for (const DetectedObject& d : det.objects) {
+    ScanObject o;
+    o.index = d.index;
+    o.identity = d.identity;
+    o.identity.score = d.identity.label ? round_opt(d.identity.score, 1e-4) : std::nullopt;
+    o.centroid_px = pt(d.geometry.centroid, 1e-3);
+    if (d.centroid_cm) o.centroid_cm = pt(*d.centroid_cm, 1e-4);
+    o.area_px = std::lround(d.geometry.area_px);
+    o.edge_points = d.geometry.edge_pixels;
+    o.pose = d.pose;
+    o.pose.orientation_deg = round_to(d.pose.orientation_deg, 1e-3);
+    o.pose.slope = round_opt(d.pose.slope, 1e-5);
+    o.pose.intercept = round_opt(d.pose.intercept, 1e-3);
+    o.pose.elongation = round_to(d.pose.elongation, 1e-3);
+    o.grip = d.grip;
+    o.grip.p1 = pt(d.grip.p1, 1e-3);
+    o.grip.p2 = pt(d.grip.p2, 1e-3);
+    o.grip.opening_px = round_to(d.grip.opening_px, 1e-3);
+    o.grip.opening_cm = round_opt(d.grip.opening_cm, 1e-4);
+    o.grip.angle_deg = round_to(d.grip.angle_deg, 1e-3);
+    o.touching = d.touching;
+    out.objects.push_back(std::move(o));
   }
-  if (!det.warnings.empty()) doc["warnings"] = det.warnings;  // only when the method could not decide
-  return doc;
+  out.warnings = det.warnings;
+  return out;
 }
 
 std::string Vision::report(const Detection& det) const {

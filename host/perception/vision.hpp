@@ -44,9 +44,10 @@ class Vision {
   // One frame (BGR or gray) -> the JSON document of `rbx1 detect --json` (shared/DESIGN.md). false + error.
   bool process(const cv::Mat& frame, nlohmann::json& result, std::string& error);
 
-  // The same in parts, for the CLI: detection on the processed (undistorted) frame, then its outputs.
+  // The same in parts, for the CLI and the daemon: detection on the processed (undistorted) frame, then its outputs.
   bool run(const cv::Mat& frame, Detection& det, cv::Mat& processed, std::string& error);
-  nlohmann::json to_json(const Detection& det) const;
+  // What the scan reports, its figures rounded as published (scan_json.hpp writes it as the JSON document).
+  Scan scan(const Detection& det) const;
   std::string report(const Detection& det) const;  // the paper's Figure 21
   bool calibrated() const { return scale_ != nullptr; }
   double px_per_cm_at(cv::Point2d px) const { return scale_ ? scale_->px_per_cm_at(px) : 0; }

@@ -51,27 +51,22 @@ bool joint_sample_from_status(const arm::ArmConfig& arm, const nlohmann::json& s
   return true;
 }
 
-std::vector<DetectionSample> detections_from_scan(const nlohmann::json& doc) {
+std::vector<DetectionSample> detections_from_scan(const vision::Scan& scan) {
   std::vector<DetectionSample> out;
-  if (!doc.is_object() || !doc.contains("objects") || !doc["objects"].is_array()) return out;
-  for (const nlohmann::json& o : doc["objects"]) {
+  for (const vision::ScanObject& o : scan.objects) {
     DetectionSample d;
-    d.id = std::to_string(o.value("index", int(out.size())));
-    if (o.contains("label") && o["label"].is_string()) {
-      d.class_id = o["label"].get<std::string>();
-      d.score = o.value("match_score", 0.0);
+    d.id = std::to_string(o.index);
+    if (o.identity.label) {
+      d.class_id = *o.identity.label;
+      d.score = o.identity.score.value_or(0.0);
     }
-    if (o.contains("centroid_px") && o["centroid_px"].is_array() && o["centroid_px"].size() == 2) {
-      d.cx = o["centroid_px"][0].get<double>();
-      d.cy = o["centroid_px"][1].get<double>();
-    }
+    d.cx = o.centroid_px.x;
+    d.cy = o.centroid_px.y;
     // The box turned to the grip: x along the closing line, as wide as the opening; y the length that gives the
     // object's area (the detector reports no box).
-    const nlohmann::json& grip = o.contains("grip") ? o["grip"] : nlohmann::json::object();
-    d.theta = grip.value("angle_deg", 0.0) * kPi / 180;
-    d.size_x = grip.value("opening_px", 0.0);
-    double area = o.value("area_px", 0.0);
-    d.size_y = d.size_x > 0 ? area / d.size_x : 0;
+    d.theta = o.grip.angle_deg * kPi / 180;
+    d.size_x = o.grip.opening_px;
+    d.size_y = d.size_x > 0 ? double(o.area_px) / d.size_x : 0;
     out.push_back(d);
   }
   return out;
@@ -127,7 +122,7 @@ void Ros2Bridge::run() {
     daemon::BusMessage m;
     if (!sub_->next(m, std::max(wait_ms, 1))) continue;
     if (m.topic == daemon::Topic::Scans) {
-      int r = writers_.write_detections(now_stamp(), detections_from_scan(m.body->value("detections", nlohmann::json())));
+      int r = m.scan ? writers_.write_detections(now_stamp(), detections_from_scan(*m.scan)) : 0;
       ++counts_.detections;
       if (r < 0) ++counts_.write_errors;
       continue;

@@ -12,14 +12,15 @@
 #include "bus.hpp"
 #include "dds_writers.hpp"
 #include "ros2_config.hpp"
+#include "types.hpp"
 
 namespace rbx1::ros2 {
 
-// The ROS 2 messages read from the bus's JSON (exposed for tests). false when the status has no firmware position.
+// The ROS 2 messages read from the bus (exposed for tests). false when the status has no firmware position.
 bool joint_sample_from_status(const arm::ArmConfig& arm, const nlohmann::json& status, JointSample& joints,
                               ToolPoseSample& tool);
-// One DetectionSample per object of an `rbx1 detect --json` document (README.md: the mapping).
-std::vector<DetectionSample> detections_from_scan(const nlohmann::json& detect_doc);
+// One DetectionSample per object of a scan (README.md: the mapping).
+std::vector<DetectionSample> detections_from_scan(const vision::Scan& scan);
 // When the status's firmware position was read (its firmware.read_at_ns, Unix time); now when it has none.
 Stamp reading_stamp(const nlohmann::json& status);
 

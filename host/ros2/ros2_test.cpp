@@ -1,4 +1,4 @@
-// ros2_test.cpp - [ros2] parsing, namespace rules, and the bus JSON -> ROS 2 message conversions.
+// ros2_test.cpp - [ros2] parsing, namespace rules, and the bus -> ROS 2 message conversions.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -97,11 +97,20 @@ TEST(Ros2Convert, JointStatesFromFirmwarePosition) {
 }
 
 TEST(Ros2Convert, DetectionsFromScan) {
-  nlohmann::json doc = {{"objects",
-                         {{{"index", 0}, {"label", "bolt"}, {"match_score", 0.93}, {"centroid_px", {120.5, 80.25}},
-                           {"area_px", 600}, {"grip", {{"angle_deg", 90.0}, {"opening_px", 20.0}}}},
-                          {{"index", 1}, {"label", nullptr}, {"match_score", nullptr}, {"centroid_px", {10, 20}},
-                           {"area_px", 100}, {"grip", {{"angle_deg", 0.0}, {"opening_px", 10.0}}}}}}};
+  auto object = [](int index, std::optional<std::string> label, std::optional<double> score, cv::Point2d c,
+                   long area, double angle, double opening) {
+    vision::ScanObject o;
+    o.index = index;
+    o.identity = {label, score};
+    o.centroid_px = c;
+    o.area_px = area;
+    o.grip.angle_deg = angle;
+    o.grip.opening_px = opening;
+    return o;
+  };
+  vision::Scan doc;
+  doc.objects = {object(0, "bolt", 0.93, {120.5, 80.25}, 600, 90.0, 20.0),
+                 object(1, std::nullopt, std::nullopt, {10, 20}, 100, 0.0, 10.0)};
   auto d = detections_from_scan(doc);
   ASSERT_EQ(d.size(), 2u);
   EXPECT_EQ(d[0].class_id, "bolt");
@@ -112,7 +121,7 @@ TEST(Ros2Convert, DetectionsFromScan) {
   EXPECT_DOUBLE_EQ(d[0].size_x, 20);
   EXPECT_DOUBLE_EQ(d[0].size_y, 30);
   EXPECT_EQ(d[1].class_id, "");
-  EXPECT_TRUE(detections_from_scan(nlohmann::json()).empty());
+  EXPECT_TRUE(detections_from_scan(vision::Scan()).empty());
 }
 
 // A reader of rt/<ns>/<topic> on its own participant (the way a ROS 2 node would join).

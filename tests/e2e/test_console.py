@@ -1,14 +1,16 @@
 """test_console.py - the web console in headless Chromium (Selenium, Debian's chromium-driver) against rbx1d and
 rbx1-simfw: the page shows the annotated scan and the objects, a pick from the page runs to the end with its
-events shown, the e-stop button latches the firmware's e-stop while the page's pick request still waits, jog from
-the page moves the arm by the amount asked (the firmware's step counts), every operator panel's request is one the
-daemon takes, a jog stops when the page (or an HTTP client) goes away mid-move, the status shows the calibration in
-force, and bad requests (token, malformed) move nothing. One browser and one daemon for most of the file (a second
-daemon, slow and calibrated, for the dead-man); screenshots go to build/e2e/console/."""
+events shown (its motion one line per phase, every step on request, its progress), the e-stop button latches the
+firmware's e-stop while the page's pick request still waits, jog from the page moves the arm by the amount asked
+(the firmware's step counts), every operator panel's request is one the daemon takes, a jog stops when the page (or
+an HTTP client) goes away mid-move, the status shows the calibration in force, and bad requests (token, malformed)
+move nothing. One browser and one daemon for most of the file (a second daemon, slow and calibrated, for the
+dead-man); screenshots go to build/e2e/console/."""
 import http.client as httpclient
 import json
 import math
 import os
+import re
 import subprocess
 import time
 import urllib.error
@@ -156,12 +158,50 @@ def test_pick_from_the_page(rig, browser):
     assert f'"picked":"{target}"' in pick[-1][1], pick[-1][1]
     wait(browser, lambda b: b.find_element(By.ID, "message").text == "pick: done", 20, "the page's pick request never ended")
     browser.save_screenshot(str(SHOTS / "2-pick-done.png"))
+    check_folded_phases(browser, pick)
     # The firmware executed the plan, and the arm is home (the page's state table says so too).
     assert len(sim.moves()) > moves_before
     st = e2e.status(d)
     assert st["job"] is None and st["ready"], st
     assert st["firmware"]["position"] == [0] * 6, st
     assert "ok" in browser.find_element(By.ID, "message").get_attribute("class")
+
+
+PHASE = re.compile(r"moved (\S+) +(\d+) (segments?) +(\d+\.\d\d) s$")
+
+
+def check_folded_phases(drv, pick):
+    """The pick's motion for people: one line per phase ("moved approach  49 segments  1.21 s"), as the CLI and
+    tools/demo fold it, with as many segments as its step_done lines in a row; the per-step lines stay in the log,
+    hidden until "every step" is ticked; the progress line ends with every planned step done."""
+    runs = []  # consecutive step_done lines by name
+    for e, t in pick:
+        if e == "step_done":
+            name = re.search(r'name="([^"]+)"', t).group(1)
+            if runs and runs[-1][0] == name:
+                runs[-1][1] += 1
+            else:
+                runs.append([name, 1])
+    phases = [PHASE.search(t) for e, t in pick if e == "phase"]
+    assert all(phases), [t for e, t in pick if e == "phase"]
+    assert [[m.group(1), int(m.group(2))] for m in phases] == runs, (phases, runs)
+    assert all((m.group(3) == "segment") == (m.group(2) == "1") for m in phases)
+    approach = next(m for m in phases if m.group(1) == "approach")
+    assert int(approach.group(2)) > 1 and float(approach.group(4)) > 0, approach.group(0)
+    shown = """return [...document.querySelectorAll('#log li')].filter(li => li.dataset.cmd === 'pick' &&
+               li.dataset.event === arguments[0]).map(li => li.offsetParent !== null)"""
+    drv.execute_script("document.getElementById('log-panel').scrollIntoView()")
+    drv.save_screenshot(str(SHOTS / "2-pick-log.png"))
+    assert set(drv.execute_script(shown, "phase")) == {True}
+    assert set(drv.execute_script(shown, "step_done")) == {False}, "per-step lines shown without 'every step'"
+    drv.find_element(By.ID, "log-verbose").click()
+    assert set(drv.execute_script(shown, "step_done")) == {True}, "'every step' does not show the step lines"
+    drv.find_element(By.ID, "log-verbose").click()
+    drv.execute_script("window.scrollTo(0, 0)")  # the clicks scrolled to the log: the next tests click the top
+    planned = int(re.search(r"steps=(\d+)", next(t for e, t in pick if e == "planned")).group(1))
+    progress = drv.find_element(By.ID, "motion-progress").text
+    m = re.match(rf"pick #\d+: done, {planned} of {planned} steps, (\d+\.\d) s$", progress)
+    assert m and float(m.group(1)) > 0, (progress, planned)
 
 
 def test_estop_button_while_a_pick_waits(rig, browser):

@@ -224,21 +224,72 @@ function summary(e) {
   const rest = Object.entries(e).filter(([k]) => !skip.has(k)).map(([k, v]) => k + '=' + JSON.stringify(v));
   return e.event + ' ' + rest.join(' ').slice(0, 300);
 }
-function logEvent(e) {
+function logLine(e, event, text) {
   const li = document.createElement('li');
   li.value = e.seq;
-  li.dataset.event = e.event || (e.result !== undefined ? 'result' : e.error ? 'error' : e.request ? 'request' : 'scan');
+  li.dataset.event = event;
   li.dataset.cmd = e.cmd || '';
-  li.className = li.dataset.event;
-  const when = e.ts ? e.ts.slice(11, 23) + ' ' : '';
-  li.textContent = when + (e.cmd ? '[' + e.cmd + ' #' + e.req + '] ' : '') + summary(e);
+  li.className = event;
+  li.textContent = (e.ts ? e.ts.slice(11, 23) + ' ' : '') + (e.cmd ? '[' + e.cmd + ' #' + e.req + '] ' : '') + text;
   li.title = JSON.stringify(e);  // the whole line on hover (the text is cut at 300 characters)
   const log = $('log');
   const atEnd = log.scrollTop + log.clientHeight >= log.scrollHeight - 4;
   log.appendChild(li);
   while (log.children.length > 500) log.firstChild.remove();
   if (atEnd) log.scrollTop = log.scrollHeight;
+  return li;
 }
+function logEvent(e) {
+  const event = e.event || (e.result !== undefined ? 'result' : e.error ? 'error' : e.request ? 'request' : 'scan');
+  const li = logLine(e, event, summary(e));
+  if (STEP_EVENTS.has(e.event)) li.classList.add('stepline');  // shown with "every step" (#log.verbose)
+  if (e.req !== undefined) foldPhase(e);
+}
+
+// ---- a job's motion for people: sent/step/step_done folded into one line per phase, as the CLI's PhaseFold and
+// tools/demo print them ("moved approach  49 segments  1.21 s"), and the job's progress (phase, steps, time) ------
+const STEP_EVENTS = new Set(['sent', 'step', 'step_done']);
+const folds = new Map();  // request number -> its fold: the phase being counted, the plan's step count
+function foldPhase(e) {
+  let f = folds.get(e.req);
+  if (!f) folds.set(e.req, f = { name: null, count: 0, t0: 0, t1: 0, li: null, total: null, done: 0, t: 0 });
+  if (e.t_ms !== undefined) f.t = e.t_ms / 1000;  // the final line has no time of its own: the last event's
+  const t = f.t;
+  if (e.event === 'planned') f.total = e.steps, f.done = 0;
+  if (e.event === 'sent' && e.step === 1 && f.total && f.done === f.total) f.total = null;  // a move after the plan
+  if (e.event === 'step_done') {
+    if (e.name !== f.name) {  // a new phase starts where the last one ended
+      f.name = e.name, f.count = 0, f.t0 = f.t1;
+      f.li = logLine(e, 'phase', '');
+    }
+    f.count += 1;
+    f.t1 = t;
+    f.done = f.total && e.step <= f.total ? e.step : null;
+    f.li.textContent = (e.ts ? e.ts.slice(11, 23) + ' ' : '') + '[' + e.cmd + ' #' + e.req + '] moved ' +
+      f.name.padEnd(10) + ' ' + String(f.count).padStart(3) + (f.count === 1 ? ' segment  ' : ' segments ') +
+      (f.t1 - f.t0).toFixed(2).padStart(6) + ' s';
+  } else if (!STEP_EVENTS.has(e.event)) {
+    f.name = null;  // any other line ends the phase
+  } else if (f.name === null) {
+    f.t1 = t;
+  }
+  showProgress(e, f, t);
+  if (e.result !== undefined || e.error) folds.delete(e.req);
+}
+// One line for the running job: what it does now, the plan's steps done of its total, the time since its request.
+function showProgress(e, f, t) {
+  const p = $('motion-progress');
+  let now = STEP_EVENTS.has(e.event) ? f.name || e.name : e.event === 'progress' ? e.phase : e.event;
+  if (e.result !== undefined) now = 'done';
+  else if (e.error) now = e.error.code;
+  if (!now) return;  // the request line
+  const steps = f.total ? (f.done === null ? '' : ', ' + f.done + ' of ' + f.total + ' steps') : '';
+  p.textContent = e.cmd + ' #' + e.req + ': ' + now + steps + ', ' + t.toFixed(1) + ' s';
+  p.dataset.cmd = e.cmd;
+  p.dataset.done = f.total && f.done !== null ? f.done : '';
+  p.dataset.total = f.total || '';
+}
+$('log-verbose').addEventListener('change', () => $('log').classList.toggle('verbose', $('log-verbose').checked));
 function connectEvents() {
   if (state.events) state.events.close();
   state.events = new EventSource(withToken('/api/events?page=' + pageId));

@@ -1,0 +1,54 @@
+// scan_json.cpp - Scan -> the `rbx1 detect --json` document. The figures are already rounded (Vision::scan):
+// this only names them.
+#include "scan_json.hpp"
+
+namespace rbx1::vision {
+
+using nlohmann::json;
+
+json point_json(const std::optional<cv::Point2d>& p) { return p ? json{p->x, p->y} : json(nullptr); }
+
+json number_json(const std::optional<double>& v) { return v ? json(*v) : json(nullptr); }
+
+namespace {
+// Why the grip is not feasible ("too_wide", ...); null when it is.
+json reason_json(const Grip& g) {
+  const char* why = g.feasible ? nullptr : grip_reason_name(g.reason);
+  return why ? json(why) : json(nullptr);
+}
+}  // namespace
+
+void to_json(json& j, const Grip& g) {
+  j = {{"p1_px", point_json(g.p1)},
+       {"p2_px", point_json(g.p2)},
+       {"opening_px", g.opening_px},
+       {"opening_cm", number_json(g.opening_cm)},
+       {"angle_deg", g.angle_deg},
+       {"feasible", g.feasible},
+       {"reason", reason_json(g)}};
+}
+
+void to_json(json& j, const ScanObject& o) {
+  j = {{"index", o.index},
+       {"label", o.identity.label ? json(*o.identity.label) : json(nullptr)},
+       {"match_score", number_json(o.identity.score)},
+       {"centroid_px", point_json(o.centroid_px)},
+       {"centroid_cm", point_json(o.centroid_cm)},
+       {"area_px", o.area_px},
+       {"edge_points", o.edge_points},
+       {"orientation_deg", o.pose.orientation_deg},
+       {"axis_line", {{"slope", number_json(o.pose.slope)}, {"intercept", number_json(o.pose.intercept)}}},
+       {"elongation", o.pose.elongation},
+       {"elongated", o.pose.elongated},
+       {"grip", o.grip},
+       {"touching", o.touching}};
+}
+
+void to_json(json& j, const Scan& s) {
+  j = {{"image", {{"width", s.image.width}, {"height", s.image.height}}},
+       {"px_per_cm", number_json(s.px_per_cm)},
+       {"objects", s.objects}};
+  if (!s.warnings.empty()) j["warnings"] = s.warnings;  // only when the method could not decide
+}
+
+}  // namespace rbx1::vision
