@@ -74,7 +74,7 @@ void Machine::job_calibrate_workspace(Reply& reply, const Request& r) {
     if (!config_.vision.calibration_path.empty()) {
       calib::Calibration c;
       if (!calib::load_calibration(config_.vision.calibration_path, c, error)) {
-        reply.error("vision_failed", error);
+        reply.error(ErrorCode::VisionFailed, error);
         return;
       }
       frame = c.undistort(frame);
@@ -82,12 +82,12 @@ void Machine::job_calibrate_workspace(Reply& reply, const Request& r) {
     auto s = std::make_unique<WorkspaceSession>();
     std::vector<int> duplicates;
     if (!calib::detect_markers(frame, config_.op.marker_dictionary, s->markers, duplicates, error)) {
-      reply.error("vision_failed", error);
+      reply.error(ErrorCode::VisionFailed, error);
       return;
     }
     s->image_size = frame.size();
     if (int(s->markers.size()) < config_.op.min_markers) {
-      reply.error("too_few_markers", std::to_string(s->markers.size()) + " " + config_.op.marker_dictionary +
+      reply.error(ErrorCode::TooFewMarkers, std::to_string(s->markers.size()) + " " + config_.op.marker_dictionary +
                                          " markers seen at the scan pose; lay at least " +
                                          std::to_string(config_.op.min_markers) +
                                          " inside the camera's view (rbx1 markers prints them); the old calibration stays");
@@ -102,7 +102,7 @@ void Machine::job_calibrate_workspace(Reply& reply, const Request& r) {
     return;
   }
   if (!workspace_) {
-    reply.error("no_calibration", "no workspace calibration in progress (calibrate_workspace start)");
+    reply.error(ErrorCode::NoCalibration, "no workspace calibration in progress (calibrate_workspace start)");
     return;
   }
   WorkspaceSession& s = *workspace_;
@@ -110,7 +110,7 @@ void Machine::job_calibrate_workspace(Reply& reply, const Request& r) {
     if (!find_marker(s, r.index)) {
       std::string seen;
       for (const auto& m : s.markers) seen += (seen.empty() ? "" : ", ") + std::to_string(m.id);
-      reply.error("unknown_marker", "marker " + std::to_string(r.index) + " was not seen at the scan pose (seen: " + seen + ")");
+      reply.error(ErrorCode::UnknownMarker, "marker " + std::to_string(r.index) + " was not seen at the scan pose (seen: " + seen + ")");
       return;
     }
     if (!ready(reply)) return;
@@ -124,7 +124,7 @@ void Machine::job_calibrate_workspace(Reply& reply, const Request& r) {
       std::snprintf(buf, sizeof buf, "the tool point is %.1f mm %s the table (z %.1f mm): jog it onto the marker's centre "
                     "(within [operator] touch_max_height_mm = %g)", std::fabs(above), above > 0 ? "above" : "below",
                     tp.z_mm, config_.op.touch_max_height_mm);
-      reply.error("not_on_table", buf);
+      reply.error(ErrorCode::NotOnTable, buf);
       return;
     }
     s.touched[r.index] = {{tp.x_mm, tp.y_mm}, tp.z_mm};
@@ -180,12 +180,12 @@ void Machine::job_calibrate_workspace(Reply& reply, const Request& r) {
   }
   // save
   if (!reason.empty()) {
-    reply.error("fit_rejected", reason + "; nothing saved, the old calibration stays");
+    reply.error(ErrorCode::FitRejected, reason + "; nothing saved, the old calibration stays");
     return;
   }
   calib::WorkspaceCalibration w{fit, s.image_size, points, table_z};
   if (!state_->ensure(error) || !calib::save_workspace(state_->path(kWorkspaceFile), w, error)) {
-    reply.error("state_failed", error);
+    reply.error(ErrorCode::StateFailed, error);
     return;
   }
   arm::CameraMount::PixelMap m;
