@@ -119,6 +119,9 @@ class Machine {
   void job_background(Reply& reply, int frames);
   void job_teach(Reply& reply, const Request& request);
   void job_calibrate_workspace(Reply& reply, const Request& request);
+  void workspace_start(Reply& reply, const char* in_force);  // markers at the scan pose: a new session
+  void workspace_record(Reply& reply, int marker);           // the tool point now is the marker's centre
+  void workspace_fit(Reply& reply, bool save);               // the map; save: written and in force
   // The cell's jobs (sort_jobs.cpp): sort by a recipe, clear to one place, each pick into the history; and the
   // requests answered at once: pause, resume, cancel, history, recipe_save (true when request was one of them).
   friend class SortRun;
