@@ -11,7 +11,7 @@ namespace rbx1::daemon {
 
 namespace {
 
-bool bad(Error& error, const std::string& code, const std::string& message) {
+bool bad(Error& error, ErrorCode code, const std::string& message) {
   error = {code, message};
   return false;
 }

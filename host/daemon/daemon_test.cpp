@@ -565,7 +565,7 @@ TEST(ErrorCodes, TheEnumAndTheWireNamesAreOneList) {
   EXPECT_STREQ(code_name(ErrorCode::FirmwareReset), "firmware_reset");
   EXPECT_STREQ(code_name(ErrorCode::TooManyStreams), "too_many_streams");
   Error e(ErrorCode::Busy, "a job is running (pick)");
-  EXPECT_EQ(error_reply(e), nlohmann::json::parse(R"({"error":{"code":"busy","message":"a job is running (pick)"}})"));
+  EXPECT_EQ(error_reply(e), nlohmann::json::parse(R"j({"error":{"code":"busy","message":"a job is running (pick)"}})j"));
   // The workspace fit's codes (host/calib) are in the list too: a reply never carries an unlisted code.
   EXPECT_NE(find_error("degenerate"), nullptr);
   EXPECT_NE(find_error("duplicate_marker"), nullptr);
