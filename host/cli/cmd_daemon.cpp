@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <memory>
 #include <string>
 
@@ -147,7 +148,8 @@ int run_daemon_request(const std::string& socket, bool json, const daemon::Reque
     return 2;
   }
   if (int r = client.send(request); r < 0) {
-    std::fprintf(stderr, "rbx1: %s: send failed (%d)\n", o.socket.c_str(), r);
+    std::fprintf(stderr, "rbx1: %s: cannot send the request: %s (is rbx1d running?)\n", o.socket.c_str(),
+                 std::strerror(-r));
     return 2;
   }
   double timeout_s = o.timeout_s >= 0 ? o.timeout_s : default_timeout_s(request.command);

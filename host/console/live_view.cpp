@@ -1,6 +1,7 @@
 // live_view.cpp - last scan image, one-shot frames, and the shared live grabber (paced, started on demand).
 #include "live_view.hpp"
 
+#include <cstring>
 #include <time.h>
 
 #include <algorithm>
@@ -88,7 +89,7 @@ bool LiveView::grab_once(Jpeg& out, std::string& error) {
   cv::Mat frame;
   int r = camera_->read(frame);
   if (r < 0 || frame.empty()) {
-    error = camera_->describe() + ": capture failed (" + std::to_string(r) + ")";
+    error = camera_->describe() + ": capture failed: " + (r < 0 ? std::strerror(-r) : "an empty frame");
     return false;
   }
   auto jpeg = std::make_shared<std::string>();

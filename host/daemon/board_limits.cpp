@@ -17,8 +17,8 @@ bool check_board_limits(link::Link& link, const arm::ArmConfig& arm, std::string
     for (const auto& l : limits) {
       rbx1_config_get_resp r{};
       if (int e = link.config_get(uint8_t(j), l.key, r); e < 0 || r.status != RBX1_OK) {
-        error = link.name() + ": CONFIG_GET " + l.board + " of joint " + std::to_string(j + 1) + " failed (" +
-                (e < 0 ? std::to_string(e) : std::string(rbx1_status_name(r.status))) + ")";
+        error = link.name() + ": CONFIG_GET " + l.board + " of joint " + std::to_string(j + 1) + " failed: " +
+                (e < 0 ? link::error_text(e) : std::string("refused (") + rbx1_status_name(r.status) + ")");
         return false;
       }
       if (l.value > r.value) {

@@ -15,9 +15,9 @@ void BusStreams::start(unsigned topics, std::shared_ptr<Reply> reply) {
     s->thread.join();
     return true;
   });
-  if (stopped_) return reply->error("shutting_down", "rbx1d is shutting down");
+  if (stopped_) return reply->error(ErrorCode::ShuttingDown, "rbx1d is shutting down");
   if (streams_.size() >= kMaxStreams)
-    return reply->error("busy", "too many subscribers (" + std::to_string(kMaxStreams) + ")");
+    return reply->error(ErrorCode::Busy, "too many subscribers (" + std::to_string(kMaxStreams) + ")");
   auto s = std::make_unique<Stream>();
   s->sub = bus_.subscribe(topics);
   Stream& ref = *s;

@@ -11,7 +11,7 @@ namespace rbx1::daemon {
 
 namespace {
 
-bool bad(Error& error, const std::string& code, const std::string& message) {
+bool bad(Error& error, ErrorCode code, const std::string& message) {
   error = {code, message};
   return false;
 }
@@ -21,14 +21,14 @@ bool check_jog(const nlohmann::json& j, Request& r, Error& e) {
   bool joint = j.contains("joint"), steps = j.contains("steps"), deg = j.contains("deg");
   if (j.contains("mm")) {
     if (joint || steps || deg)
-      return bad(e, "bad_request", "jog takes either \"mm\" (tool point) or \"joint\" with \"steps\" or \"deg\"");
+      return bad(e, ErrorCode::BadRequest, "jog takes either \"mm\" (tool point) or \"joint\" with \"steps\" or \"deg\"");
     r.joint = 0;
     return true;
   }
   if (!joint)
-    return bad(e, "missing_field", "jog needs \"joint\" (1.." + std::to_string(RBX1_JOINTS) +
+    return bad(e, ErrorCode::MissingField, "jog needs \"joint\" (1.." + std::to_string(RBX1_JOINTS) +
                                        ") with \"steps\" or \"deg\", or \"mm\"");
-  if (steps == deg) return bad(e, "bad_request", "jog of a joint takes exactly one of \"steps\" and \"deg\"");
+  if (steps == deg) return bad(e, ErrorCode::BadRequest, "jog of a joint takes exactly one of \"steps\" and \"deg\"");
   r.by_steps = steps;
   return true;
 }
@@ -45,13 +45,13 @@ void write_jog(const Request& r, nlohmann::json& j) {
 
 bool check_pose_save(const nlohmann::json&, Request& r, Error& e) {
   if (r.name == "scan") return true;
-  return bad(e, "bad_field", "pose_save: only the \"scan\" pose is taught (got \"" + r.name + "\")");
+  return bad(e, ErrorCode::BadField, "pose_save: only the \"scan\" pose is taught (got \"" + r.name + "\")");
 }
 
 bool check_calibrate(const nlohmann::json& j, Request& r, Error& e) {
   bool marker = j.contains("marker");
-  if (r.action == "record" && !marker) return bad(e, "missing_field", "record needs \"marker\" (its id)");
-  if (r.action != "record" && marker) return bad(e, "bad_field", "\"marker\" belongs to action record only");
+  if (r.action == "record" && !marker) return bad(e, ErrorCode::MissingField, "record needs \"marker\" (its id)");
+  if (r.action != "record" && marker) return bad(e, ErrorCode::BadField, "\"marker\" belongs to action record only");
   return true;
 }
 
@@ -159,35 +159,35 @@ bool read_field(const Field& f, const nlohmann::json& v, Request& out, Error& e)
   const std::string key = std::string("\"") + f.key + "\"";
   switch (f.type) {
     case F::Name:
-      if (!valid_name(v)) return bad(e, "bad_field", key + " must be a non-empty string of at most 64 printable characters");
+      if (!valid_name(v)) return bad(e, ErrorCode::BadField, key + " must be a non-empty string of at most 64 printable characters");
       out.*std::get<std::string Request::*>(f.slot) = v.get<std::string>();
       return true;
     case F::Choice: {
       std::string all = f.choices;
       std::replace(all.begin(), all.end(), '|', ',');
       if (!v.is_string() || !one_of(v.get<std::string>(), f.choices))
-        return bad(e, "bad_field", key + " must be one of " + all);
+        return bad(e, ErrorCode::BadField, key + " must be one of " + all);
       out.*std::get<std::string Request::*>(f.slot) = v.get<std::string>();
       return true;
     }
     case F::Integer:
       if (!v.is_number_integer() || double(v.get<long long>()) < f.lo || double(v.get<long long>()) > f.hi)
-        return bad(e, "bad_field", key + " must be an integer in " + range_text(f));
+        return bad(e, ErrorCode::BadField, key + " must be an integer in " + range_text(f));
       out.*std::get<int Request::*>(f.slot) = int(v.get<long long>());
       return true;
     case F::Number:
       if (!v.is_number() || !std::isfinite(v.get<double>()) || v.get<double>() < f.lo || v.get<double>() > f.hi)
-        return bad(e, "bad_field", key + " must be a number in " + range_text(f));
+        return bad(e, ErrorCode::BadField, key + " must be a number in " + range_text(f));
       out.*std::get<double Request::*>(f.slot) = v.get<double>();
       return true;
     case F::Flag:
-      if (!v.is_boolean()) return bad(e, "bad_field", key + " must be true or false");
+      if (!v.is_boolean()) return bad(e, ErrorCode::BadField, key + " must be true or false");
       out.*std::get<bool Request::*>(f.slot) = v.get<bool>();
       return true;
     case F::Vec3: {
       bool ok = v.is_array() && v.size() == 3;
       for (size_t i = 0; ok && i < 3; ++i) ok = v[i].is_number() && std::isfinite(v[i].get<double>());
-      if (!ok) return bad(e, "bad_field", key + " must be [dx, dy, dz] in millimetres (base frame)");
+      if (!ok) return bad(e, ErrorCode::BadField, key + " must be [dx, dy, dz] in millimetres (base frame)");
       auto& a = out.*std::get<std::array<double, 3> Request::*>(f.slot);
       for (size_t i = 0; i < 3; ++i) a[i] = v[i].get<double>();
       return true;
@@ -196,7 +196,7 @@ bool read_field(const Field& f, const nlohmann::json& v, Request& out, Error& e)
       bool ok = v.is_array() && !v.empty() && v.size() <= 16;
       for (size_t i = 0; ok && i < v.size(); ++i)
         ok = valid_name(v[i]) && (!f.choices || one_of(v[i].get<std::string>(), f.choices));
-      if (!ok) return bad(e, "bad_field", key + " must be a non-empty array of names" +
+      if (!ok) return bad(e, ErrorCode::BadField, key + " must be a non-empty array of names" +
                                            (f.choices ? std::string(" from ") + f.choices : std::string()));
       out.*std::get<std::vector<std::string> Request::*>(f.slot) = v.get<std::vector<std::string>>();
       return true;
@@ -205,7 +205,7 @@ bool read_field(const Field& f, const nlohmann::json& v, Request& out, Error& e)
       out.*std::get<nlohmann::json Request::*>(f.slot) = v;
       return true;
   }
-  return bad(e, "internal", "field type");
+  return bad(e, ErrorCode::Internal, "field type");
 }
 
 // A field's value in out as JSON, or null when it holds its default (not sent).
@@ -277,12 +277,12 @@ bool parse_fields(const CommandSpec& spec, const nlohmann::json& j, Request& out
     if (key == "cmd") continue;
     bool known = false;
     for (const auto& f : spec.fields) known = known || key == f.key;
-    if (!known) return bad(error, "bad_field", "unknown field \"" + key.substr(0, 40) + "\" for " + spec.name);
+    if (!known) return bad(error, ErrorCode::BadField, "unknown field \"" + key.substr(0, 40) + "\" for " + spec.name);
   }
   for (const auto& f : spec.fields) {
     auto v = j.find(f.key);
     if (v == j.end()) {
-      if (f.required) return bad(error, "missing_field", std::string(spec.name) + " needs \"" + f.key + "\" (" + f.help + ")");
+      if (f.required) return bad(error, ErrorCode::MissingField, std::string(spec.name) + " needs \"" + f.key + "\" (" + f.help + ")");
       continue;
     }
     if (!read_field(f, *v, out, error)) return false;

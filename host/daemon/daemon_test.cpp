@@ -9,6 +9,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -467,4 +469,104 @@ TEST(ErrorCodes, OneListClassifiesEveryCode) {
   EXPECT_EQ(find_error("made_up"), nullptr);
   std::set<std::string> codes;
   for (const auto& e : error_codes()) EXPECT_TRUE(codes.insert(e.code).second) << e.code;
+}
+
+// ---- the spine's typed seams: handlers by table, readiness, the firmware-reset check, errors in words -----------
+
+TEST(CommandHandlers, EveryCommandHasOneOfItsMode) {
+  for (const auto& spec : command_table()) {
+    bool job = Machine::job_handler(spec.command) != nullptr;
+    bool immediate = Machine::immediate_handler(spec.command) != nullptr;
+    EXPECT_EQ(job, spec.mode == Mode::Job) << spec.name << ": a job needs its line in job_handler";
+    EXPECT_EQ(immediate, spec.mode == Mode::Immediate) << spec.name << ": needs its line in immediate_handler";
+  }
+  EXPECT_EQ(Machine::job_handler(Command::Status), nullptr);
+  EXPECT_EQ(Machine::immediate_handler(Command::Pick), nullptr);
+}
+
+TEST(Readiness, StatesAndTheirReasons) {
+  ReadyState r;
+  EXPECT_EQ(r.state(), Readiness::Starting);
+  EXPECT_FALSE(r.ready());
+  EXPECT_EQ(r.reason(), "");
+  r.prepared({Readiness::LinkDown, "/dev/rbx1: STATUS failed: no answer"});
+  EXPECT_EQ(r.state(), Readiness::LinkDown);
+  EXPECT_EQ(r.reason(), "/dev/rbx1: STATUS failed: no answer");
+  EXPECT_EQ(job_error(r.state()), ErrorCode::NotReady);
+  r.prepared({Readiness::Fault, "firmware in FAULT [\"ESTOP_COMMAND\"] (rbx1 clear-fault)"});
+  EXPECT_EQ(job_error(r.state()), ErrorCode::Fault);
+  r.prepared({Readiness::Ready, "ignored"});
+  EXPECT_TRUE(r.ready());
+  EXPECT_EQ(r.reason(), "");  // a ready state has no reason
+  EXPECT_STREQ(readiness_name(r.state()), "ready");
+}
+
+TEST(Readiness, AHoldOutlastsEveryPreparationUntilReleased) {
+  ReadyState r;
+  r.prepared({Readiness::Ready, ""});
+  r.hold("the firmware lost its joint positions (reset?)");
+  EXPECT_TRUE(r.held());
+  EXPECT_FALSE(r.ready());
+  EXPECT_EQ(r.reason(), "the firmware lost its joint positions (reset?): put the arm at its home pose, then rbx1 clear-fault");
+  EXPECT_EQ(job_error(r.state()), ErrorCode::NotReady);
+  r.prepared({Readiness::Ready, ""});  // a preparation racing the hold does not end it
+  r.prepared({Readiness::LinkDown, "gone"});
+  EXPECT_TRUE(r.held());
+  EXPECT_NE(r.reason().find("rbx1 clear-fault"), std::string::npos);
+  r.release();  // clear_fault
+  EXPECT_EQ(r.state(), Readiness::Starting);
+  EXPECT_EQ(r.reason(), "");
+  r.prepared({Readiness::Ready, ""});
+  EXPECT_TRUE(r.ready());
+}
+
+TEST(FirmwareReset, OneCheckForPositionsLostAndCountersBack) {
+  rbx1_status_resp before{}, now{};
+  before.homed = now.homed = RBX1_ALL_JOINTS_MASK;
+  before.moves_accepted = 10, before.moves_done = 8, before.moves_flushed = 1;
+  now = before;
+  now.moves_accepted = 12, now.moves_done = 12;
+  EXPECT_EQ(firmware_reset(&before, now), "");
+  EXPECT_EQ(firmware_reset(nullptr, now), "");
+  now.homed = RBX1_ALL_JOINTS_MASK & ~1u;  // joint 1 forgot its position
+  EXPECT_EQ(firmware_reset(&before, now), "the firmware lost its joint positions (reset?)");
+  EXPECT_EQ(firmware_reset(nullptr, now), "the firmware lost its joint positions (reset?)");
+  now = before;
+  now.moves_done = 0;  // counters restarted: a power-cycled board (homed again by someone) or another one
+  EXPECT_EQ(firmware_reset(&before, now), "the firmware's counters went back (reset?)");
+  now.homed = 0;  // both: the counters are named first
+  EXPECT_EQ(firmware_reset(&before, now), "the firmware's counters went back (reset?)");
+  before.moves_accepted = 65535, now = before;
+  now.moves_accepted = 2;  // the 16-bit counter wrapped: not a reset
+  EXPECT_EQ(firmware_reset(&before, now), "");
+}
+
+TEST(LinkErrors, AreWordsNeverABareErrno) {
+  for (int e : {ETIMEDOUT, ENODEV, EIO, ENOENT, ENOTCONN, EBUSY, EPROTO, EBADMSG, EOPNOTSUPP, EACCES}) {
+    std::string text = link::error_text(-e);
+    EXPECT_GT(text.size(), 10u) << e;
+    EXPECT_EQ(text.find(std::to_string(e)), std::string::npos) << text;
+  }
+  EXPECT_EQ(link::failed("/dev/rbx1", "STATUS", -ETIMEDOUT),
+            "/dev/rbx1: STATUS failed: no answer from the firmware after every retransmission (check the cable and "
+            "the board's power)");
+  EXPECT_NE(link::error_text(-EPROTO).find("rbx1-flash"), std::string::npos);  // what to do
+  EXPECT_EQ(link::error_text(-EACCES), std::strerror(EACCES));
+}
+
+TEST(ErrorCodes, TheEnumAndTheWireNamesAreOneList) {
+  const auto& all = error_codes();
+  for (size_t i = 0; i < all.size(); ++i) {
+    EXPECT_EQ(size_t(all[i].id), i) << all[i].code;
+    EXPECT_EQ(&error_info(all[i].id), &all[i]);
+    EXPECT_EQ(find_error(all[i].code), &all[i]);
+  }
+  EXPECT_STREQ(code_name(ErrorCode::NotReady), "not_ready");
+  EXPECT_STREQ(code_name(ErrorCode::FirmwareReset), "firmware_reset");
+  EXPECT_STREQ(code_name(ErrorCode::TooManyStreams), "too_many_streams");
+  Error e(ErrorCode::Busy, "a job is running (pick)");
+  EXPECT_EQ(error_reply(e), nlohmann::json::parse(R"j({"error":{"code":"busy","message":"a job is running (pick)"}})j"));
+  // The workspace fit's codes (host/calib) are in the list too: a reply never carries an unlisted code.
+  EXPECT_NE(find_error("degenerate"), nullptr);
+  EXPECT_NE(find_error("duplicate_marker"), nullptr);
 }

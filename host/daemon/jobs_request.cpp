@@ -9,7 +9,7 @@ namespace rbx1::daemon {
 namespace {
 
 bool bad(Error& error, const std::string& message) {
-  error = {"bad_field", message};
+  error = {ErrorCode::BadField, message};
   return false;
 }
 

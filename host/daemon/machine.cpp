@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 
 #include <opencv2/imgcodecs.hpp>
@@ -51,7 +52,7 @@ int Machine::start_gpio(std::string& error) {
       if (ev.active) estop("gpio");  // on the watcher thread: ESTOP goes out from here
     });
     if (r < 0) {
-      error = estop_input_->describe() + ": cannot watch the e-stop line (" + std::to_string(r) + ")";
+      error = estop_input_->describe() + ": cannot watch the e-stop line: " + std::strerror(-r);
       return r;
     }
     spdlog::info("gpio: e-stop on {}", estop_input_->describe());
@@ -75,7 +76,7 @@ int Machine::start_gpio(std::string& error) {
       if (ev.active) start_pressed();  // on the watcher thread: only queues the job
     });
     if (r < 0) {
-      error = start_input_->describe() + ": cannot watch the start button (" + std::to_string(r) + ")";
+      error = start_input_->describe() + ": cannot watch the start button: " + std::strerror(-r);
       return r;
     }
     if (config_.daemon.start_pick.empty())
@@ -150,7 +151,7 @@ void Machine::stop() {
     std::lock_guard lock(mutex_);
     if (stopping_ && !worker_.joinable()) return;
     stopping_ = true;
-    abort_reason_ = "shutdown";
+    abort_reason_ = code_name(ErrorCode::Shutdown);
   }
   abort_ = true;
   cv_.notify_all();
@@ -179,8 +180,8 @@ void Machine::estop(const std::string& source) {
   set_led(false);  // latched: not ready until clear_fault
   {
     std::lock_guard lock(mutex_);
-    abort_reason_ = "estop";
-    for (auto& job : queue_) job.reply->error("estop", "e-stop (" + source + ") before the job started");
+    abort_reason_ = code_name(ErrorCode::Estop);
+    for (auto& job : queue_) job.reply->error(ErrorCode::Estop, "e-stop (" + source + ") before the job started");
     queue_.clear();
   }
   abort_ = true;
@@ -211,57 +212,52 @@ nlohmann::json Machine::call(Command command, int timeout_ms) {
 void Machine::handle(const Request& request, std::shared_ptr<Reply> reply) {
   const CommandSpec& spec = command_spec(request.command);
   if (spec.access != Access::Read) reply->publish_to(bus_, request_json(request));
-  switch (request.command) {
-    case Command::Status:
-      reply->result(status_reply());
-      return;
-    case Command::Scene:
-      reply->result(scene_reply());
-      return;
-    case Command::Subscribe: {
-      unsigned topics = 0;
-      for (const auto& name : request.topics)
-        if (Topic t; topic_from_name(name, t)) topics |= unsigned(t);
-      streams_.start(topics ? topics : unsigned(Topic::Status) | unsigned(Topic::Events) | unsigned(Topic::Scans),
-                     std::move(reply));
-      return;
-    }
-    case Command::Estop: {
-      bool had_job;
-      {
-        std::lock_guard lock(mutex_);
-        had_job = running_.has_value();
-      }
-      estop("control");
-      reply->event("estop_sent", {{"source", "control"}});
-      rbx1_status_resp st{};
-      nlohmann::json result{{"estop", true}, {"aborted_job", had_job}};
-      if (link_.connected() && link_.status(st) == 0) {
-        note_status(st);
-        result["firmware"] = status_json(st);
-      }
-      reply->result(result);
-      return;
-    }
-    case Command::Shutdown:
-      reply->result({{"shutdown", true}});
-      if (on_shutdown_) on_shutdown_();
-      return;
-    default:
-      if (handle_jobs_request(request, *reply)) return;
-      break;
+  if (spec.mode == Mode::Immediate) {
+    if (ImmediateHandler answer = immediate_handler(request.command)) answer(*this, request, std::move(reply));
+    else reply->error(ErrorCode::Internal, std::string(spec.name) + " has no handler");
+    return;
   }
   std::lock_guard lock(mutex_);
   if (stopping_) {
-    reply->error("shutting_down", "rbx1d is shutting down");
+    reply->error(ErrorCode::ShuttingDown, "rbx1d is shutting down");
     return;
   }
   if (const char* busy = busy_locked()) {
-    reply->error("busy", std::string("a job is running (") + busy + ")");
+    reply->error(ErrorCode::Busy, std::string("a job is running (") + busy + ")");
     return;
   }
   queue_.push_back({request, reply});
   cv_.notify_all();
+}
+
+void Machine::answer_subscribe(const Request& request, std::shared_ptr<Reply> reply) {
+  unsigned topics = 0;
+  for (const auto& name : request.topics)
+    if (Topic t; topic_from_name(name, t)) topics |= unsigned(t);
+  streams_.start(topics ? topics : unsigned(Topic::Status) | unsigned(Topic::Events) | unsigned(Topic::Scans),
+                 std::move(reply));
+}
+
+void Machine::answer_estop(Reply& reply) {
+  bool had_job;
+  {
+    std::lock_guard lock(mutex_);
+    had_job = running_.has_value();
+  }
+  estop("control");
+  reply.event("estop_sent", {{"source", "control"}});
+  rbx1_status_resp st{};
+  nlohmann::json result{{"estop", true}, {"aborted_job", had_job}};
+  if (link_.connected() && link_.status(st) == 0) {
+    note_status(st);
+    result["firmware"] = status_json(st);
+  }
+  reply.result(result);
+}
+
+void Machine::answer_shutdown(Reply& reply) {
+  reply.result({{"shutdown", true}});
+  if (on_shutdown_) on_shutdown_();
 }
 
 const char* Machine::busy_locked() const {
@@ -303,9 +299,9 @@ nlohmann::json Machine::status_reply() {
   std::lock_guard lock(mutex_);
   nlohmann::json j;
   j["job"] = running_ ? nlohmann::json(command_name(running_->command)) : nlohmann::json(nullptr);
-  j["ready"] = prepared_ && link_.connected() && !(last_status_ && last_status_->state == RBX1_STATE_FAULT);
+  j["ready"] = readiness_.ready() && link_.connected() && !(last_status_ && last_status_->state == RBX1_STATE_FAULT);
   j["link"] = {{"port", config_.link.port}, {"connected", link_.connected()}};
-  if (!link_error_.empty()) j["link"]["error"] = link_error_;
+  if (!readiness_.reason().empty()) j["link"]["error"] = readiness_.reason();
   auto stats = link_.stats();
   j["link"]["retransmissions"] = stats.retransmissions;
   j["link"]["reconnects"] = stats.reconnects;
@@ -363,116 +359,135 @@ void Machine::set_last_status(const rbx1_status_resp& s) {
 
 void Machine::hold(const std::string& why) {
   // Under mutex_. The daemon no longer knows where the arm is: nothing moves until the operator says so.
-  prepared_ = false;
-  hold_ = true;
-  link_error_ = why + ": put the arm at its home pose, then rbx1 clear-fault";
+  readiness_.hold(why);
   set_led(false);
-  spdlog::error("{}", link_error_);
+  spdlog::error("{}", readiness_.reason());
 }
 
-bool Machine::prepare(std::string& error) {
-  if (!link_.connected()) {
-    int r = link_.name().empty() ? link_.open(config_.link, error) : link_.reconnect(error);
-    if (r == -EOPNOTSUPP || (r < 0 && link_.name().empty())) r = link_.open(config_.link, error);
-    if (r < 0) return false;
-    const auto& fw = link_.firmware();
-    spdlog::info("link: {} firmware {}.{}.{}, {} joints, queue {}", link_.name(), fw.fw_major, fw.fw_minor,
-                 fw.fw_patch, fw.joints, fw.queue_size);
-  }
+bool Machine::note_same_firmware(const rbx1_status_resp& st) {
+  std::string reset = firmware_reset(last_status_ ? &*last_status_ : nullptr, st);
+  set_last_status(st);
+  if (!session_ || reset.empty()) return true;
+  if (!readiness_.held()) hold(reset);
+  return false;
+}
+
+namespace {
+bool not_ready(NotReady& why, Readiness state, std::string message) {
+  why = {state, std::move(message)};
+  return false;
+}
+
+// A STATUS for the preparation; false with why (the link is down) when none came.
+bool read_status(link::Link& link, rbx1_status_resp& st, NotReady& why) {
+  int r = link.status(st);
+  return r == 0 || not_ready(why, Readiness::LinkDown, link::failed(link.name(), "STATUS", r));
+}
+
+// A preparation request that failed: the link's words for r < 0, else the firmware's refusal.
+std::string refused(const std::string& port, const char* what, int r, uint8_t status) {
+  return r < 0 ? link::failed(port, what, r) : std::string(what) + " refused: " + rbx1_status_name(status);
+}
+}  // namespace
+
+bool Machine::prepare(NotReady& why) {
   rbx1_status_resp st{};
-  if (int r = link_.status(st); r < 0) {
-    error = link_.name() + ": STATUS failed (" + std::to_string(r) + ")";
-    return false;
-  }
+  if (!connect(st, why)) return false;
   {
     // A firmware this daemon had prepared and that since lost its positions or restarted its counters was
     // reset (power, watchdog, another board on the port): declaring the home pose again is the operator's call.
     std::lock_guard lock(mutex_);
-    bool back = last_status_ && counters_went_back(*last_status_, st);
-    set_last_status(st);
-    if (session_ && (st.homed != RBX1_ALL_JOINTS_MASK || back)) {
-      hold(back ? "the firmware's counters went back (reset?)" : "the firmware lost its joint positions (reset?)");
-      error = link_error_;
-      return false;
-    }
+    if (!note_same_firmware(st)) return not_ready(why, Readiness::Held, readiness_.reason());
   }
   // Queue entries this daemon did not send (a killed predecessor's) are stopped before anything else.
   int foreign = 0;
-  if (stop_foreign(link_, st, foreign, error) < 0) return false;
+  std::string error;
+  if (stop_foreign(link_, st, foreign, error) < 0) return not_ready(why, Readiness::NotPrepared, error);
   note_status(st);
-  // A lost heartbeat is the previous host session's doing; an e-stop is the operator's to clear.
-  if ((st.faults & RBX1_FAULTS_LATCHING) == RBX1_FAULT_HEARTBEAT_LOST) {
-    rbx1_clear_fault_resp cf{};
-    if (int r = link_.clear_fault(cf); r < 0 || cf.status != RBX1_OK) {
-      error = link_.name() + ": could not clear a stale HEARTBEAT_LOST (" +
-              (r < 0 ? std::to_string(r) : std::string(rbx1_status_name(cf.status))) + ")";
-      return false;
-    }
-    if (int r = link_.status(st); r < 0) {
-      error = link_.name() + ": STATUS failed (" + std::to_string(r) + ")";
-      return false;
-    }
-    note_status(st);
-    spdlog::info("link: cleared a stale HEARTBEAT_LOST");
-  }
-  if (st.state == RBX1_STATE_FAULT) {
-    error = "firmware in FAULT " + fault_names(st.faults).dump() + " (rbx1 clear-fault)";
-    // Still usable for status and clear_fault: report ready=false but keep the link.
-    return false;
-  }
+  if (!clear_stale_heartbeat(st, why)) return false;
+  if (st.state == RBX1_STATE_FAULT)  // still usable for status and clear_fault: not ready, the link kept
+    return not_ready(why, Readiness::Fault, "firmware in FAULT " + fault_names(st.faults).dump() + " (rbx1 clear-fault)");
   // Lines are timed at the config's joint limits: above the board's, nothing is planned (not ready, the reason).
-  if (!check_board_limits(link_, config_.arm, error)) return false;
-  if (!st.enabled) {
-    rbx1_enable_resp en{};
-    if (link_.enable(true, en) < 0 || en.status != RBX1_OK) {
-      error = std::string("ENABLE refused: ") + rbx1_status_name(en.status);
-      return false;
-    }
-  }
-  if (st.homed != RBX1_ALL_JOINTS_MASK) {
-    if (config_.daemon.home_on_start == "home") {
-      rbx1_home_resp h{};
-      if (link_.home(0, h) < 0 || h.status != RBX1_OK) {
-        error = std::string("HOME refused: ") + rbx1_status_name(h.status);
-        return false;
-      }
-      auto deadline = Clock::now() + std::chrono::seconds(120);
-      do {
-        std::this_thread::sleep_for(std::chrono::milliseconds(100));
-        if (link_.status(st) < 0) {
-          error = "link lost while homing";
-          return false;
-        }
-        note_status(st);
-        if (st.state == RBX1_STATE_FAULT) {
-          error = "homing failed " + fault_names(st.faults).dump();
-          return false;
-        }
-      } while (st.state == RBX1_STATE_HOMING && Clock::now() < deadline);
-      if (st.homed != RBX1_ALL_JOINTS_MASK) {
-        error = "homing did not complete";
-        return false;
-      }
-      spdlog::info("link: homed on the switches");
-    } else {
-      // Declared: the arm is taken to be at its configured home pose (the operator put it there).
-      arm::Steps home = arm::joints_to_steps(config_.arm, config_.arm.home);
-      rbx1_set_position_resp sp{};
-      if (link_.set_position(home.data(), sp) < 0 || sp.status != RBX1_OK) {
-        error = std::string("SET_POSITION refused: ") + rbx1_status_name(sp.status);
-        return false;
-      }
-      spdlog::info("link: positions declared at the home pose");
-    }
-  }
-  if (int r = link_.status(st); r < 0) {
-    error = link_.name() + ": STATUS failed (" + std::to_string(r) + ")";
-    return false;
-  }
+  if (!check_board_limits(link_, config_.arm, error)) return not_ready(why, Readiness::BoardLimits, error);
+  if (!enable_and_home(st, why)) return false;
+  if (!read_status(link_, st, why)) return false;
   note_status(st);
   std::lock_guard lock(mutex_);
   session_ = true;
   return true;
+}
+
+bool Machine::connect(rbx1_status_resp& st, NotReady& why) {
+  if (!link_.connected()) {
+    std::string error;
+    int r = link_.name().empty() ? link_.open(config_.link, error) : link_.reconnect(error);
+    if (r == -EOPNOTSUPP || (r < 0 && link_.name().empty())) r = link_.open(config_.link, error);
+    if (r < 0) return not_ready(why, Readiness::LinkDown, error);
+    const auto& fw = link_.firmware();
+    spdlog::info("link: {} firmware {}.{}.{}, {} joints, queue {}", link_.name(), fw.fw_major, fw.fw_minor,
+                 fw.fw_patch, fw.joints, fw.queue_size);
+  }
+  if (!read_status(link_, st, why)) return false;
+  return true;
+}
+
+bool Machine::clear_stale_heartbeat(rbx1_status_resp& st, NotReady& why) {
+  // A lost heartbeat is the previous host session's doing; an e-stop is the operator's to clear.
+  if ((st.faults & RBX1_FAULTS_LATCHING) != RBX1_FAULT_HEARTBEAT_LOST) return true;
+  rbx1_clear_fault_resp cf{};
+  if (int r = link_.clear_fault(cf); r < 0 || cf.status != RBX1_OK)
+    return not_ready(why, Readiness::NotPrepared, "could not clear a stale HEARTBEAT_LOST: " +
+                                                      refused(link_.name(), "CLEAR_FAULT", r, cf.status));
+  if (!read_status(link_, st, why)) return false;
+  note_status(st);
+  spdlog::info("link: cleared a stale HEARTBEAT_LOST");
+  return true;
+}
+
+bool Machine::enable_and_home(rbx1_status_resp& st, NotReady& why) {
+  if (!st.enabled) {
+    rbx1_enable_resp en{};
+    if (int r = link_.enable(true, en); r < 0 || en.status != RBX1_OK)
+      return not_ready(why, Readiness::NotPrepared, refused(link_.name(), "ENABLE", r, en.status));
+  }
+  if (st.homed == RBX1_ALL_JOINTS_MASK) return true;
+  return config_.daemon.home_on_start == "home" ? home_on_switches(st, why) : declare_home(why);
+}
+
+bool Machine::home_on_switches(rbx1_status_resp& st, NotReady& why) {
+  rbx1_home_resp h{};
+  if (int r = link_.home(0, h); r < 0 || h.status != RBX1_OK)
+    return not_ready(why, Readiness::NotPrepared, refused(link_.name(), "HOME", r, h.status));
+  auto deadline = Clock::now() + std::chrono::seconds(120);
+  do {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    if (int r = link_.status(st); r < 0)
+      return not_ready(why, Readiness::LinkDown, "link lost while homing: " + link::error_text(r));
+    note_status(st);
+    if (st.state == RBX1_STATE_FAULT)
+      return not_ready(why, Readiness::NotPrepared, "homing failed " + fault_names(st.faults).dump());
+  } while (st.state == RBX1_STATE_HOMING && Clock::now() < deadline);
+  if (st.homed != RBX1_ALL_JOINTS_MASK) return not_ready(why, Readiness::NotPrepared, "homing did not complete");
+  spdlog::info("link: homed on the switches");
+  return true;
+}
+
+bool Machine::declare_home(NotReady& why) {
+  // The arm is taken to be at its configured home pose (the operator put it there).
+  arm::Steps home = arm::joints_to_steps(config_.arm, config_.arm.home);
+  rbx1_set_position_resp sp{};
+  if (int r = link_.set_position(home.data(), sp); r < 0 || sp.status != RBX1_OK)
+    return not_ready(why, Readiness::NotPrepared, refused(link_.name(), "SET_POSITION", r, sp.status));
+  spdlog::info("link: positions declared at the home pose");
+  return true;
+}
+
+bool Machine::try_prepare(NotReady& why) {
+  bool ok = prepare(why);
+  std::lock_guard lock(mutex_);
+  readiness_.prepared(ok ? NotReady{Readiness::Ready, ""} : why);
+  why = readiness_.why();  // a hold outlasts any preparation
+  return readiness_.ready();
 }
 
 void Machine::worker() {
@@ -480,23 +495,21 @@ void Machine::worker() {
   for (;;) {
     std::unique_lock lock(mutex_);
     if (stopping_) break;
-    if ((!prepared_ || !link_.connected()) && !hold_) {
+    if ((!readiness_.ready() || !link_.connected()) && !readiness_.held()) {
       lock.unlock();
-      std::string error;
-      bool ok = prepare(error);
+      NotReady why;
+      bool ok = try_prepare(why);
       lock.lock();
-      prepared_ = ok;
-      link_error_ = ok ? "" : error;
       set_led(ok);
       if (ok) {
         spdlog::info("ready");
         logged_error = false;
       } else if (!logged_error) {
-        spdlog::warn("not ready: {} (retrying)", error);
+        spdlog::warn("not ready: {} (retrying)", why.message);
         logged_error = true;
       }
     }
-    int wait_ms = prepared_ ? config_.link.heartbeat_ms : 500;
+    int wait_ms = readiness_.ready() ? config_.link.heartbeat_ms : 500;
     cv_.wait_for(lock, std::chrono::milliseconds(wait_ms), [this] { return stopping_ || !queue_.empty(); });
     if (stopping_) break;
     if (!queue_.empty()) {
@@ -514,21 +527,8 @@ void Machine::worker() {
       continue;
     }
     if (link_.connected()) {
-      // Idle heartbeat: a STATUS keeps the firmware's heartbeat fed and the status cache fresh.
       lock.unlock();
-      rbx1_status_resp st{};
-      int r = link_.status(st);
-      if (r < 0) spdlog::warn("link: idle STATUS failed ({})", r);
-      if (r == 0) {
-        // A reset board (power, watchdog, USB re-plug) no longer knows where the arm is; neither does the
-        // daemon. Declaring the home pose again is the operator's call, not ours.
-        std::lock_guard relock(mutex_);
-        bool back = last_status_ && counters_went_back(*last_status_, st);
-        set_last_status(st);
-        if (session_ && !hold_ && (st.homed != RBX1_ALL_JOINTS_MASK || back))
-          hold(back ? "the firmware's counters went back (reset?)" : "the firmware lost its joint positions (reset?)");
-        set_led(prepared_ && st.state != RBX1_STATE_FAULT);  // lit exactly while status says ready
-      }
+      idle_status();
     }
   }
   // Shutdown while moving: a controlled stop, never an arm left running unattended.
@@ -541,53 +541,46 @@ void Machine::worker() {
   }
 }
 
+void Machine::idle_status() {
+  // Idle heartbeat: a STATUS keeps the firmware's heartbeat fed and the status cache fresh.
+  rbx1_status_resp st{};
+  if (int r = link_.status(st); r < 0) {
+    spdlog::warn("link: idle STATUS failed: {}", link::error_text(r));
+    return;
+  }
+  // A reset board (power, watchdog, USB re-plug) no longer knows where the arm is; neither does the daemon.
+  // Declaring the home pose again is the operator's call, not ours.
+  std::lock_guard lock(mutex_);
+  note_same_firmware(st);
+  set_led(readiness_.ready() && st.state != RBX1_STATE_FAULT);  // lit exactly while status says ready
+}
+
 void Machine::run_job(Job& job) {
   Reply& reply = *job.reply;
   reply.event("job_started", request_json(job.request));
   auto started = Clock::now();
   job_deadline_ns_ = mono_ns() + int64_t(config_.daemon.job_timeout_s * 1e9);
-  switch (job.request.command) {
-    case Command::Scan: job_scan(reply); break;
-    case Command::Pick: job_pick(reply, job.request.name, job.request.place); break;
-    case Command::Home: job_home(reply); break;
-    case Command::ClearFault: job_clear_fault(reply); break;
-    case Command::Jog: job_jog(reply, job.request); break;
-    case Command::PoseSave: job_pose_save(reply); break;
-    case Command::PlaceSave: job_place_save(reply, job.request.name); break;
-    case Command::Background: job_background(reply, job.request.frames); break;
-    case Command::Teach: job_teach(reply, job.request); break;
-    case Command::CalibrateWorkspace: job_calibrate_workspace(reply, job.request); break;
-    case Command::Sort: case Command::Clear: job_sort(reply, job.request); break;
-    default: reply.error("bad_request", "not a job"); break;
-  }
-  if (!reply.finished()) reply.error("internal", "job ended without a result");
+  if (JobHandler run = job_handler(job.request.command)) run(*this, reply, job.request);
+  else reply.error(ErrorCode::BadRequest, "not a job");
+  if (!reply.finished()) reply.error(ErrorCode::Internal, "job ended without a result");
   spdlog::info("job {} ended after {:.2f} s", command_name(job.request.command),
                std::chrono::duration<double>(Clock::now() - started).count());
 }
 
 bool Machine::ready(Reply& reply) {
-  std::string error;
   {
     std::lock_guard lock(mutex_);
-    if (prepared_ && link_.connected()) return true;
-    error = link_error_;
-    if (hold_) {
-      reply.error("not_ready", error);
+    if (readiness_.ready() && link_.connected()) return true;
+    if (readiness_.held()) {
+      reply.error(job_error(readiness_.state()), readiness_.reason());
       return false;
     }
   }
   // The worker retries in the background; a job waits a moment for a link that is just coming up.
-  bool ok = prepare(error);
-  {
-    std::lock_guard lock(mutex_);
-    prepared_ = ok;
-    link_error_ = ok ? "" : error;
-  }
-  if (!ok) {
-    bool fault = error.rfind("firmware in FAULT", 0) == 0;
-    reply.error(fault ? "fault" : "not_ready", error);
-  }
-  return ok;
+  NotReady why;
+  if (try_prepare(why)) return true;
+  reply.error(job_error(why.state), why.message);
+  return false;
 }
 
 MotionHooks Machine::hooks(Reply& reply) {
@@ -596,7 +589,7 @@ MotionHooks Machine::hooks(Reply& reply) {
   h.aborted = [this] { return abort_.load() || mono_ns() > job_deadline_ns_.load(); };
   h.abort_reason = [this] {
     std::lock_guard lock(mutex_);
-    return abort_.load() ? abort_reason_ : std::string("timeout");
+    return abort_.load() ? abort_reason_ : std::string(code_name(ErrorCode::Timeout));
   };
   h.on_status = [this](const rbx1_status_resp& s) { note_status(s); };
   return h;
@@ -605,18 +598,18 @@ MotionHooks Machine::hooks(Reply& reply) {
 bool Machine::run_steps(Reply& reply, const std::vector<MotionStep>& steps, MotionResult& result) {
   Motion motion(link_, {config_.daemon.status_poll_ms, config_.daemon.move_timeout_s, config_.daemon.reconnect_timeout_s});
   result = motion.run(steps, hooks(reply));
-  if (!result.ok && result.code == "firmware_reset") {
+  if (result.failed_with(ErrorCode::FirmwareReset)) {
     std::lock_guard lock(mutex_);
     hold("the firmware was reset or replaced during the job (" + result.message + ")");
   }
-  if (!result.ok && result.code != "estop" && link_.connected()) {
+  if (!result.ok && !result.failed_with(ErrorCode::Estop) && link_.connected()) {
     // A failed job (timeout, shutdown, a refused step) leaves nothing running behind it: STOP flushes what it
     // queued. The e-stop already halted everything.
     rbx1_stop_resp sr{};
-    if (int r = link_.stop(sr); r < 0) spdlog::warn("job failed ({}): STOP not acknowledged ({})", result.code, r);
+    if (int r = link_.stop(sr); r < 0) spdlog::warn("job failed ({}): STOP not acknowledged: {}", result.code, link::error_text(r));
   }
   if (!result.ok) {
-    if (result.code == "estop") reply.event("estop", {{"source", estop_source()}, {"firmware", status_json(result.last)}});
+    if (result.failed_with(ErrorCode::Estop)) reply.event("estop", {{"source", estop_source()}, {"firmware", status_json(result.last)}});
     reply.error(result.code, result.message);
     return false;
   }
@@ -637,7 +630,7 @@ bool Machine::move_to(Reply& reply, const std::string& name, const arm::Joints& 
   std::vector<MotionStep> steps;
   std::string error;
   if (!plan_pose_move(config_.arm, st, name, pose, steps, error)) {
-    reply.error("plan_failed", error);
+    reply.error(ErrorCode::PlanFailed, error);
     return false;
   }
   return run_steps(reply, steps, result);
@@ -656,7 +649,8 @@ bool Machine::plan_pick(const vision::Scan& scan, const vision::ScanObject& obje
 bool Machine::capture(Reply& reply, cv::Mat& frame) {
   int r = camera_->read(frame);
   if (r < 0 || frame.empty()) {
-    reply.error("camera_failed", camera_->describe() + ": capture failed (" + std::to_string(r) + ")");
+    reply.error(ErrorCode::CameraFailed, camera_->describe() + ": capture failed: " +
+                                             (r < 0 ? std::strerror(-r) : "an empty frame"));
     return false;
   }
   return true;
@@ -727,20 +721,20 @@ void Machine::job_home(Reply& reply) {
 
 void Machine::job_clear_fault(Reply& reply) {
   if (!link_.connected()) {
-    std::string error;
-    if (!prepare(error) && !link_.connected()) {
-      reply.error("not_ready", error);
+    NotReady why;
+    if (!prepare(why) && !link_.connected()) {
+      reply.error(ErrorCode::NotReady, why.message);
       return;
     }
   }
   rbx1_clear_fault_resp cf{};
   int r = link_.clear_fault(cf);
   if (r < 0) {
-    reply.error("link_down", link_.name() + ": CLEAR_FAULT failed (" + std::to_string(r) + ")");
+    reply.error(ErrorCode::LinkDown, link::failed(link_.name(), "CLEAR_FAULT", r));
     return;
   }
   if (cf.status != RBX1_OK) {
-    reply.error(cf.status == RBX1_ESTOP_ACTIVE ? "estop_active" : "fault",
+    reply.error(cf.status == RBX1_ESTOP_ACTIVE ? ErrorCode::EstopActive : ErrorCode::Fault,
                 std::string("CLEAR_FAULT refused: ") + rbx1_status_name(cf.status) +
                     (cf.status == RBX1_ESTOP_ACTIVE ? " (release the e-stop input first)" : ""));
     return;
@@ -748,22 +742,17 @@ void Machine::job_clear_fault(Reply& reply) {
   reply.event("fault_cleared");
   {
     std::lock_guard lock(mutex_);
-    hold_ = false;  // the operator's word that the arm stands where home_on_start will declare it
+    readiness_.release();  // the operator's word that the arm stands where home_on_start will declare it
     session_ = false;
   }
-  std::string error;
-  bool ok = prepare(error);
-  {
-    std::lock_guard lock(mutex_);
-    prepared_ = ok;
-    link_error_ = ok ? "" : error;
-  }
+  NotReady why;
+  bool ok = try_prepare(why);
   {
     std::lock_guard lock(estop_mu_);
     last_estop_.clear();
   }
   if (!ok) {
-    reply.error("not_ready", error);
+    reply.error(ErrorCode::NotReady, why.message);
     return;
   }
   rbx1_status_resp st{};

@@ -18,6 +18,7 @@
 #include "daemon_setup.hpp"
 #include "history.hpp"
 #include "motion.hpp"
+#include "readiness.hpp"
 #include "server.hpp"
 #include "state_dir.hpp"
 #include "workspace_session.hpp"
@@ -57,6 +58,14 @@ class Machine {
   // The status and event bus: every request's lines but reads, status on change (at least every 2 s), each scan.
   Bus& bus() { return bus_; }
 
+  // Each command of the command table (command_table.cpp) has its handler here (command_handlers.cpp): a job's
+  // runs on the worker, one at a time; an immediate one's at once on the caller's thread, ending the reply now or
+  // later. Adding a command is its table entry, its line in command_handlers.cpp and the function it calls.
+  using JobHandler = void (*)(Machine& m, Reply& reply, const Request& request);
+  using ImmediateHandler = void (*)(Machine& m, const Request& request, std::shared_ptr<Reply> reply);
+  static JobHandler job_handler(Command c);              // null for an immediate command
+  static ImmediateHandler immediate_handler(Command c);  // null for a job
+
  private:
   struct Job {
     Request request;
@@ -65,7 +74,22 @@ class Machine {
 
   void worker();
   int start_gpio(std::string& error);
-  bool prepare(std::string& error);                // link open, HELLO, enable, home/declare
+  // Link open, HELLO, foreign entries stopped, enable, home/declare; false with why (readiness.hpp).
+  bool prepare(NotReady& why);
+  bool connect(rbx1_status_resp& st, NotReady& why);                // open or reopen, the first STATUS
+  bool clear_stale_heartbeat(rbx1_status_resp& st, NotReady& why);  // a previous host session's HEARTBEAT_LOST
+  bool enable_and_home(rbx1_status_resp& st, NotReady& why);        // [daemon] home_on_start when not homed
+  bool home_on_switches(rbx1_status_resp& st, NotReady& why);
+  bool declare_home(NotReady& why);
+  bool try_prepare(NotReady& why);  // prepare() with its outcome in readiness_; true when ready
+  // Notes a STATUS (mutex_ held); a firmware this daemon prepared that was since reset (firmware_reset()) puts it
+  // on hold. False then.
+  bool note_same_firmware(const rbx1_status_resp& st);
+  void idle_status();  // the worker's STATUS between jobs (the firmware's heartbeat, the status cache)
+  // The immediate commands answered here (the others: handle_jobs_request).
+  void answer_subscribe(const Request& request, std::shared_ptr<Reply> reply);
+  void answer_estop(Reply& reply);
+  void answer_shutdown(Reply& reply);
   void run_job(Job& job);
   void job_scan(Reply& reply);
   void job_pick(Reply& reply, const std::string& name, const std::string& place);
@@ -74,7 +98,7 @@ class Machine {
   // Moves to a joint pose (degrees) as one step; false after reply->error.
   bool move_to(Reply& reply, const std::string& name, const arm::Joints& pose);
   bool move_to(Reply& reply, const std::string& name, const arm::Joints& pose, MotionResult& result);
-  void hold(const std::string& why);  // mutex_ held: not ready until clear_fault
+  void hold(const std::string& why);  // mutex_ held: readiness Held until clear_fault
   bool run_steps(Reply& reply, const std::vector<MotionStep>& steps, MotionResult& result);
   // The pick of `object` (one of scan's objects) to `place`, planned from the last firmware status (pick_plan.hpp).
   bool plan_pick(const vision::Scan& scan, const vision::ScanObject& object, const std::string& place,
@@ -97,6 +121,9 @@ class Machine {
   void job_background(Reply& reply, int frames);
   void job_teach(Reply& reply, const Request& request);
   void job_calibrate_workspace(Reply& reply, const Request& request);
+  void workspace_start(Reply& reply, const char* in_force);  // markers at the scan pose: a new session
+  void workspace_record(Reply& reply, int marker);           // the tool point now is the marker's centre
+  void workspace_fit(Reply& reply, bool save);               // the map; save: written and in force
   // The cell's jobs (sort_jobs.cpp): sort by a recipe, clear to one place, each pick into the history; and the
   // requests answered at once: pause, resume, cancel, history, recipe_save, recipes (true when request was one of
   // them).
@@ -153,10 +180,8 @@ class Machine {
   std::optional<Request> running_;  // the job the worker is running
   std::shared_ptr<Reply> running_reply_;  // its reply: once finished, the next job may queue behind it
   bool stopping_ = false;
-  bool prepared_ = false;           // link up, drivers enabled, positions homed or declared
-  bool hold_ = false;               // the firmware lost its positions: wait for the operator (clear_fault)
+  ReadyState readiness_;            // ready, or why not (the status's link.error)
   bool session_ = false;            // this daemon prepared the firmware: a later reset of it is a hold, not a fresh start
-  std::string link_error_;          // why the link is not ready
   std::optional<rbx1_status_resp> last_status_;
   int64_t last_status_read_ns_ = 0;  // Unix time (ns) last_status_ was read from the firmware
   bool status_news_ = false;        // a new position for the status thread to publish

@@ -100,6 +100,24 @@ TEST_F(MachineOnFakePeer, ClearFaultKeepsTheLastGoodStatusWhenTheLineDiesAfterPr
   expect_real_status(firmware());
 }
 
+// The line dies in the preparation after CLEAR_FAULT (its first STATUS answered, the first CONFIG_GET not): the job
+// and the status name what happened in words and what to do, never a bare errno ("failed (-110)").
+TEST_F(MachineOnFakePeer, ALinkThatDiesSaysSoInWords) {
+  peer_->silence_after_count = 1;
+  peer_->silence_after_type = RBX1_MSG_CLEAR_FAULT;
+  auto r = machine_->call(Command::ClearFault);
+  ASSERT_TRUE(r.contains("error")) << r.dump();
+  EXPECT_EQ(r["error"]["code"], "not_ready") << r.dump();
+  const std::string why = peer_->slave_path() + ": CONFIG_GET MAX_SPEED of joint 1 failed: no answer from the "
+                          "firmware after every retransmission (check the cable and the board's power)";
+  EXPECT_EQ(r["error"]["message"], why);
+  auto st = machine_->call(Command::Status)["result"];
+  EXPECT_EQ(st["ready"], false) << st.dump();
+  const std::string shown = st["link"].value("error", "");  // this, or the worker's next try: "STATUS failed: ..."
+  EXPECT_NE(shown.find(" failed: no answer from the firmware"), std::string::npos) << st.dump();
+  EXPECT_EQ(shown.find("(-"), std::string::npos) << st.dump();
+}
+
 // The board's ACCEL of joint 3 and MAX_SPEED of joint 5 below the config's keys: the daemon plans nothing (status
 // not ready, naming both keys; a job not_ready with the reason) and never enables or homes the arm.
 class MachineOnASlowerBoard : public MachineOnFakePeer {

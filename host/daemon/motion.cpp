@@ -98,13 +98,13 @@ int stop_foreign(link::Link& link, rbx1_status_resp& st, int& stopped, std::stri
                state_name(st.state), stopped);
   rbx1_stop_resp sr{};
   if (int r = link.stop(sr); r < 0) {
-    error = link.name() + ": STOP failed (" + std::to_string(r) + ")";
+    error = link::failed(link.name(), "STOP", r);
     return r;
   }
   auto deadline = Clock::now() + std::chrono::seconds(10);
   for (;;) {
     if (int r = link.status(st); r < 0) {
-      error = link.name() + ": STATUS failed while stopping (" + std::to_string(r) + ")";
+      error = link::failed(link.name(), "STATUS while stopping", r);
       return r;
     }
     if (st.state == RBX1_STATE_IDLE || st.state == RBX1_STATE_FAULT) return 0;
@@ -120,6 +120,12 @@ bool counters_went_back(const rbx1_status_resp& before, const rbx1_status_resp& 
   return int16_t(uint16_t(now.moves_accepted - before.moves_accepted)) < 0 ||
          int16_t(uint16_t(now.moves_done - before.moves_done)) < 0 ||
          int16_t(uint16_t(now.moves_flushed - before.moves_flushed)) < 0;
+}
+
+std::string firmware_reset(const rbx1_status_resp* before, const rbx1_status_resp& now) {
+  if (before && counters_went_back(*before, now)) return "the firmware's counters went back (reset?)";
+  if (now.homed != RBX1_ALL_JOINTS_MASK) return "the firmware lost its joint positions (reset?)";
+  return "";
 }
 
 // One run(): the loop over the job's entries as named steps. Each step returns false once fail() filled the result.
@@ -154,9 +160,10 @@ class Motion::Run {
     res_.message = std::move(message);
     return false;
   }
+  bool fail(ErrorCode code, std::string message) { return fail(code_name(code), std::move(message)); }
   bool fail(const JournalError& e) { return fail(e.code, e.message); }
-  Next failed(std::string code, std::string message) {
-    fail(std::move(code), std::move(message));
+  Next failed(ErrorCode code, std::string message) {
+    fail(code, std::move(message));
     return Next::Failed;
   }
   size_t done() const { return journal_->done(); }
@@ -168,24 +175,21 @@ class Motion::Run {
     for (;;) {
       int r = link_.status(st_);
       if (r == 0) {
-        bool back = have_last_ && counters_went_back(res_.last, st_);
+        std::string reset = firmware_reset(have_last_ ? &res_.last : nullptr, st_);
         res_.last = st_;
         have_last_ = true;
         if (hooks_.on_status) hooks_.on_status(st_);
-        if (back || st_.homed != RBX1_ALL_JOINTS_MASK)
-          return fail("firmware_reset", std::string("the firmware ") +
-                                            (back ? "counters went back" : "lost its joint positions") +
-                                            " (reset?); refusing to guess the arm's state");
+        if (!reset.empty()) return fail(ErrorCode::FirmwareReset, reset + "; refusing to guess the arm's state");
         return true;
       }
-      if (!link_error(r)) return fail("link_error", link_.name() + ": STATUS failed (" + std::to_string(r) + ")");
+      if (!link_error(r)) return fail(ErrorCode::LinkError, link_.name() + ": STATUS failed: " + link::error_text(r));
       if (!recover()) return false;
     }
   }
 
   // Waits for the link to come back (Motion::recover); a failure ends the run (aborted: by its reason).
   bool recover() {
-    if (motion_.recover(hooks_, err_) < 0) return fail(hooks_.aborted() ? hooks_.abort_reason() : "link_down", err_);
+    if (motion_.recover(hooks_, err_) < 0) return fail(hooks_.aborted() ? hooks_.abort_reason() : code_name(ErrorCode::LinkDown), err_);
     res_.recovered++;
     return true;
   }
@@ -195,13 +199,13 @@ class Motion::Run {
   bool start() {
     if (!read_status()) return false;
     if (st_.state == RBX1_STATE_FAULT)
-      return fail("fault", "firmware is in FAULT (" + fault_names(st_.faults).dump() + "); clear_fault first");
+      return fail(ErrorCode::Fault, "firmware is in FAULT (" + fault_names(st_.faults).dump() + "); clear_fault first");
     int foreign = 0;
-    if (stop_foreign(link_, st_, foreign, err_) < 0) return fail("link_error", err_);
+    if (stop_foreign(link_, st_, foreign, err_) < 0) return fail(ErrorCode::LinkError, err_);
     if (foreign || st_.state != RBX1_STATE_IDLE) {
       hooks_.emit("stopped_foreign", {{"entries", foreign}, {"firmware", status_json(st_)}});
       if (st_.state != RBX1_STATE_IDLE)
-        return fail("fault", "firmware not idle after stopping foreign entries (" +
+        return fail(ErrorCode::Fault, "firmware not idle after stopping foreign entries (" +
                                  std::string(state_name(st_.state)) + ")");
       res_.last = st_;
     }
@@ -239,7 +243,7 @@ class Motion::Run {
     if (error) return fail(error);
     more = end != BatchEnd::Refused && r == 0;
     if (end == BatchEnd::Refused || r == 0) return true;
-    if (!link_error(r)) return fail("link_error", link_.name() + ": request failed (" + std::to_string(r) + ")");
+    if (!link_error(r)) return fail(ErrorCode::LinkError, link::failed(link_.name(), "request", r));
     return after_outage();  // then handle_faults() sees a heartbeat loss before more is sent
   }
 
@@ -291,18 +295,18 @@ class Motion::Run {
   Next handle_faults() {
     if (st_.state != RBX1_STATE_FAULT && !(st_.faults & RBX1_FAULTS_LATCHING)) return Next::On;
     if (st_.faults & (RBX1_FAULT_ESTOP_INPUT | RBX1_FAULT_ESTOP_COMMAND))
-      return failed("estop", "e-stop: motion stopped at step " + std::to_string(done() + 1) + " (" +
+      return failed(ErrorCode::Estop, "e-stop: motion stopped at step " + std::to_string(done() + 1) + " (" +
                                  step_name(done()) + ")");
     if ((st_.faults & RBX1_FAULTS_LATCHING) == RBX1_FAULT_HEARTBEAT_LOST && st_.state != RBX1_STATE_STOPPING) {
       hooks_.emit("heartbeat_lost", {{"completed", done()}, {"flushed", journal_->flushed()}});
-      if (motion_.clear_heartbeat_lost(hooks_, st_, res_.recovered, err_) < 0) return failed("fault", err_);
+      if (motion_.clear_heartbeat_lost(hooks_, st_, res_.recovered, err_) < 0) return failed(ErrorCode::Fault, err_);
       res_.last = st_;
       if (!reconcile()) return Next::Failed;
       res_.resent += int(journal_->resend_flushed());  // their targets are absolute: sending them again resumes
       return Next::Again;
     }
     if (st_.state == RBX1_STATE_FAULT)
-      return failed("fault", "firmware fault " + fault_names(st_.faults).dump() + " at step " +
+      return failed(ErrorCode::Fault, "firmware fault " + fault_names(st_.faults).dump() + " at step " +
                                  std::to_string(done() + 1));
     return Next::On;
   }
@@ -310,7 +314,7 @@ class Motion::Run {
   // Entries flushed with no fault: a STOP this job did not send.
   bool check_flushed() {
     if (!journal_->flushed() || st_.state == RBX1_STATE_STOPPING) return true;
-    return fail("stopped", "the firmware flushed " + std::to_string(journal_->flushed()) + " entries of this job at step " +
+    return fail(ErrorCode::Stopped, "the firmware flushed " + std::to_string(journal_->flushed()) + " entries of this job at step " +
                                std::to_string(done() + 1) + " without a fault (a STOP from elsewhere?)");
   }
 
@@ -319,7 +323,7 @@ class Motion::Run {
     if (done() >= journal_->sent()) return true;
     double allowed = planned_s(steps_[done()]) + motion_.options_.move_timeout_s;
     if (std::chrono::duration<double>(Clock::now() - head_since_).count() <= allowed) return true;
-    return fail("timeout", "step " + std::to_string(done() + 1) + " (" + steps_[done()].name +
+    return fail(ErrorCode::Timeout, "step " + std::to_string(done() + 1) + " (" + steps_[done()].name +
                                ") did not complete within " + std::to_string(int(allowed)) + " s");
   }
 
@@ -377,7 +381,7 @@ int Motion::clear_heartbeat_lost(const MotionHooks& hooks, rbx1_status_resp& st,
       return -EPERM;
     }
     if (r < 0 && !link_error(r)) {
-      error = link_.name() + ": CLEAR_FAULT failed (" + std::to_string(r) + ")";
+      error = link::failed(link_.name(), "CLEAR_FAULT", r);
       return r;
     }
     if (r < 0) {
@@ -386,7 +390,7 @@ int Motion::clear_heartbeat_lost(const MotionHooks& hooks, rbx1_status_resp& st,
     }
     if ((r = link_.status(st)) < 0) {
       if (!link_error(r) || recover(hooks, error) < 0) {
-        if (error.empty()) error = link_.name() + ": STATUS failed (" + std::to_string(r) + ")";
+        if (error.empty()) error = link::failed(link_.name(), "STATUS", r);
         return r;
       }
       ++recovered;
@@ -400,7 +404,7 @@ int Motion::clear_heartbeat_lost(const MotionHooks& hooks, rbx1_status_resp& st,
       if (r < 0 && link_error(r)) continue;
       if (r < 0 || en.status != RBX1_OK) {
         error = "could not re-enable the drivers after HEARTBEAT_LOST: " +
-                (r < 0 ? std::to_string(r) : std::string(rbx1_status_name(en.status)));
+                (r < 0 ? link::error_text(r) : std::string(rbx1_status_name(en.status)));
         return -EPERM;
       }
       if (link_.status(st) < 0) continue;

@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "error_codes.hpp"
 #include "link.hpp"
 
 namespace rbx1::daemon {
@@ -31,10 +32,11 @@ struct MotionOptions {
 // Outcome of run(): ok, or an error code/message for the reply.
 struct MotionResult {
   bool ok = false;
-  std::string code, message;
+  std::string code, message;  // code: an ErrorCode's wire name, or an abort reason of the job's (jog's client_gone)
   rbx1_status_resp last{};  // the last STATUS read
   int resent = 0;           // steps sent again after a heartbeat-loss stop flushed them
   int recovered = 0;        // link recoveries during the run
+  bool failed_with(ErrorCode c) const { return !ok && code == code_name(c); }
 };
 
 // Callbacks into the job: events, abort checks, every STATUS read (the daemon's status cache).
@@ -71,6 +73,10 @@ class Motion {
 int stop_foreign(link::Link& link, rbx1_status_resp& st, int& stopped, std::string& error);
 // True when any of STATUS's queue counters is below the earlier reading (a power-cycled or another firmware).
 bool counters_went_back(const rbx1_status_resp& before, const rbx1_status_resp& now);
+// The one firmware-reset check (power, watchdog, USB re-plug, another board on the port): why `now` is not the
+// firmware this host prepared ("the firmware lost its joint positions (reset?)", "the firmware's counters went
+// back (reset?)"), or "" when it may be. before: the previous STATUS of this firmware, null when none.
+std::string firmware_reset(const rbx1_status_resp* before, const rbx1_status_resp& now);
 
 // "IDLE", "MOVING", ... for a state byte; fault bits as names.
 const char* state_name(uint8_t state);

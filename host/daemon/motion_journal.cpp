@@ -1,6 +1,8 @@
 // motion_journal.cpp - the at-most-once bookkeeping of a job's queue entries: answers, counters, outages, flushes.
 #include "motion_journal.hpp"
 
+#include "error_codes.hpp"
+
 #include <algorithm>
 
 #include <spdlog/spdlog.h>
@@ -46,7 +48,7 @@ BatchEnd MotionJournal::take_answers(const std::vector<link::StreamRequest>& bat
       queue_free_ = 0;
       for (size_t j = k + 1; j < count; ++j)
         if (answered_ok(batch[j])) {
-          error = {"rejected", "firmware accepted step " + std::to_string(batch_first_ + j + 1) +
+          error = {code_name(ErrorCode::Rejected), "firmware accepted step " + std::to_string(batch_first_ + j + 1) +
                                    " after refusing step " + std::to_string(batch_first_ + k + 1) +
                                    "; the queue's order is lost"};
           return BatchEnd::Refused;
@@ -54,7 +56,7 @@ BatchEnd MotionJournal::take_answers(const std::vector<link::StreamRequest>& bat
       return BatchEnd::Refused;
     }
     if (status != RBX1_OK) {
-      error = {"rejected", "firmware refused step " + std::to_string(sent_ + 1) + " (" + names_[sent_] +
+      error = {code_name(ErrorCode::Rejected), "firmware refused step " + std::to_string(sent_ + 1) + " (" + names_[sent_] +
                                "): " + rbx1_status_name(status)};
       return BatchEnd::Refused;
     }
@@ -72,7 +74,7 @@ JournalError MotionJournal::outage(const rbx1_status_resp& st, std::vector<Journ
     if (batch_[j].answered && batch_[j].resp_len >= 1 && (batch_[j].resp[0] == RBX1_OK) != (j < k + ran))
       fits = false;
   if (!fits)
-    return {"firmware_reset", "the firmware's counters (accepted " + std::to_string(queued) +
+    return {code_name(ErrorCode::FirmwareReset), "the firmware's counters (accepted " + std::to_string(queued) +
                                   " since the job began) disagree with the " + std::to_string(accepted_) +
                                   " entries this job knows plus " + std::to_string(count - k) +
                                   " unanswered; refusing to guess the arm's state"};
@@ -93,7 +95,7 @@ JournalError MotionJournal::reconcile(const rbx1_status_resp& st, std::vector<Jo
   const size_t a = since_base_accepted(st), d = since(st.moves_done, base_.moves_done),
                f = since(st.moves_flushed, base_.moves_flushed);
   if (a != accepted_ || d + f > a || d > n)
-    return {"firmware_reset", "the firmware's counters (accepted " + std::to_string(a) + ", done " +
+    return {code_name(ErrorCode::FirmwareReset), "the firmware's counters (accepted " + std::to_string(a) + ", done " +
                                   std::to_string(d) + ", flushed " + std::to_string(f) +
                                   " since the job began) disagree with the " + std::to_string(accepted_) +
                                   " entries this job sent; refusing to guess the arm's state"};

@@ -40,7 +40,7 @@ std::string fmt(const char* f, double a, double b = 0) {
 bool Machine::current_pose(Reply& reply, arm::Steps& steps, arm::Joints& deg) {
   rbx1_status_resp st{};
   if (int r = link_.status(st); r < 0) {
-    reply.error("link_down", link_.name() + ": STATUS failed (" + std::to_string(r) + ")");
+    reply.error(ErrorCode::LinkDown, link::failed(link_.name(), "STATUS", r));
     return false;
   }
   note_status(st);
@@ -53,7 +53,7 @@ bool Machine::reload_vision(Reply& reply) {
   std::string error;
   auto v = vision::Vision::create(config_.vision, error);
   if (!v) {
-    reply.error("vision_failed", error);
+    reply.error(ErrorCode::VisionFailed, error);
     return false;
   }
   vision_ = std::move(v);
@@ -78,43 +78,43 @@ void Machine::job_jog(Reply& reply, const Request& r) {
     // The amount asked for (the step rounding may add up to half a step to it).
     double change = r.by_steps ? std::fabs(r.steps) * 360.0 / arm::steps_per_rev(jc) : std::fabs(r.deg);
     if (change > config_.op.jog_max_deg + 1e-9) {
-      reply.error("jog_too_far", "J" + std::to_string(r.joint) + fmt(" jog of %.2f deg is above [operator] jog_max_deg = %g", change,
+      reply.error(ErrorCode::JogTooFar, "J" + std::to_string(r.joint) + fmt(" jog of %.2f deg is above [operator] jog_max_deg = %g", change,
                                                                      config_.op.jog_max_deg) + "; nothing moved");
       return;
     }
   } else {
     double dist = std::sqrt(r.mm[0] * r.mm[0] + r.mm[1] * r.mm[1] + r.mm[2] * r.mm[2]);
     if (dist > config_.op.jog_max_mm + 1e-9) {
-      reply.error("jog_too_far", fmt("tool jog of %.1f mm is above [operator] jog_max_mm = %g", dist, config_.op.jog_max_mm) +
+      reply.error(ErrorCode::JogTooFar, fmt("tool jog of %.1f mm is above [operator] jog_max_mm = %g", dist, config_.op.jog_max_mm) +
                                      "; nothing moved");
       return;
     }
     arm::ToolPose tp = arm::tool_pose(cfg.links, deg);
     if (tp.tilt_deg > 1.0) {
-      reply.error("bad_pose", fmt("a tool-point jog keeps the tool pointing down, but it is tilted %.1f deg: jog the "
+      reply.error(ErrorCode::BadPose, fmt("a tool-point jog keeps the tool pointing down, but it is tilted %.1f deg: jog the "
                                   "joints or go to the scan pose first; nothing moved", tp.tilt_deg));
       return;
     }
     arm::Grasp g{tp.x_mm + r.mm[0], tp.y_mm + r.mm[1], tp.z_mm + r.mm[2], tp.yaw_deg};
     if (g.z_mm < cfg.heights.table_z_mm - 1e-6) {
-      reply.error("out_of_limits", fmt("the tool point would go %.2f mm below the table (z %.2f mm); nothing moved",
+      reply.error(ErrorCode::OutOfLimits, fmt("the tool point would go %.2f mm below the table (z %.2f mm); nothing moved",
                                        cfg.heights.table_z_mm - g.z_mm, g.z_mm));
       return;
     }
     if (!arm::ik(cfg, g, deg, target, error)) {
-      reply.error("out_of_limits", error + "; nothing moved");
+      reply.error(ErrorCode::OutOfLimits, error + "; nothing moved");
       return;
     }
   }
   if (!arm::check_limits(cfg, target, error)) {
-    reply.error("out_of_limits", error + "; nothing moved");
+    reply.error(ErrorCode::OutOfLimits, error + "; nothing moved");
     return;
   }
   rbx1_status_resp st{};
   for (int i = 0; i < RBX1_JOINTS; ++i) st.position[i] = cur[i];
   std::vector<MotionStep> steps;
   if (!plan_pose_move(cfg, st, "jog", target, steps, error)) {
-    reply.error("out_of_limits", error + "; nothing moved");
+    reply.error(ErrorCode::OutOfLimits, error + "; nothing moved");
     return;
   }
   // The dead-man rule: the move stops (STOP on the wire) as soon as the client that asked for it is gone.
@@ -129,9 +129,9 @@ void Machine::job_jog(Reply& reply, const Request& r) {
     if (result.code == "client_gone") {
       rbx1_stop_resp sr{};
       int rs = link_.stop(sr);
-      spdlog::warn("jog: the client went away mid-move: STOP sent ({})", rs);
+      spdlog::warn("jog: the client went away mid-move: STOP sent ({})", rs < 0 ? link::error_text(rs) : "acknowledged");
     }
-    if (result.code == "estop")
+    if (result.failed_with(ErrorCode::Estop))
       reply.event("estop", {{"source", estop_source()}, {"firmware", status_json(result.last)}});
     reply.error(result.code, result.message);
     return;
@@ -152,7 +152,7 @@ void Machine::job_pose_save(Reply& reply) {
   if (!current_pose(reply, cur, deg)) return;
   std::string error;
   if (!state_->save_scan_pose(deg, error)) {
-    reply.error("state_failed", error);
+    reply.error(ErrorCode::StateFailed, error);
     return;
   }
   {
@@ -173,14 +173,14 @@ void Machine::job_place_save(Reply& reply, const std::string& name) {
   if (!current_pose(reply, cur, deg)) return;
   arm::ToolPose tp = arm::tool_pose(config_.arm.links, deg);
   if (tp.tilt_deg > 1.0) {
-    reply.error("bad_pose", fmt("a place is where the tool points straight down, but it is tilted %.1f deg", tp.tilt_deg));
+    reply.error(ErrorCode::BadPose, fmt("a place is where the tool points straight down, but it is tilted %.1f deg", tp.tilt_deg));
     return;
   }
   // The tool point (between the fingertips) on the surface: that surface's height is the place's z.
   arm::Place p{tp.x_mm, tp.y_mm, tp.z_mm, tp.yaw_deg};
   std::string error;
   if (!state_->save_place(name, p, error)) {
-    reply.error("state_failed", error);
+    reply.error(ErrorCode::StateFailed, error);
     return;
   }
   {
@@ -205,12 +205,12 @@ void Machine::job_background(Reply& reply, int frames) {
   }
   cv::Mat mean;
   if (std::string why; !vision::average_background(shots, mean, why)) {
-    reply.error("camera_failed", camera_->describe() + ": " + why);
+    reply.error(ErrorCode::CameraFailed, camera_->describe() + ": " + why);
     return;
   }
   std::string error;
   if (!state_->save_background(mean, error)) {
-    reply.error("state_failed", error);
+    reply.error(ErrorCode::StateFailed, error);
     return;
   }
   std::string old = config_.vision.background_path;
@@ -232,13 +232,13 @@ void Machine::job_teach(Reply& reply, const Request& r) {
   cv::Mat processed;
   std::string error;
   if (!vision_->run(frame, det, processed, error)) {
-    reply.error("vision_failed", error);
+    reply.error(ErrorCode::VisionFailed, error);
     return;
   }
   size_t k = 0;
   while (k < det.objects.size() && det.objects[k].index != r.index) ++k;
   if (k == det.objects.size()) {
-    reply.error("no_object", "no object #" + std::to_string(r.index) + " in the live scan (" +
+    reply.error(ErrorCode::NoObject, "no object #" + std::to_string(r.index) + " in the live scan (" +
                                  std::to_string(det.objects.size()) + " found)");
     return;
   }
@@ -255,12 +255,12 @@ void Machine::job_teach(Reply& reply, const Request& r) {
   const std::string target = state_->path(kLibraryFile);
   const std::string from = config_.vision.library_path.empty() ? target : config_.vision.library_path;
   if (!vision::load_library(from, lib, error, /*allow_missing=*/from == target)) {
-    reply.error("state_failed", error);
+    reply.error(ErrorCode::StateFailed, error);
     return;
   }
   vision::upsert(lib, e);
   if (!state_->ensure(error) || !vision::save_library(target, lib, error)) {
-    reply.error("state_failed", error);
+    reply.error(ErrorCode::StateFailed, error);
     return;
   }
   std::string old = config_.vision.library_path;

@@ -27,7 +27,7 @@ bool Machine::check_pick(Reply& reply, const std::string& name, const std::strin
                                 {"centroid_cm", vision::point_json(left->centroid_cm)}, {"retry", retry}});
     if (!retry) {
       if (!move_to(reply, "home", config_.arm.home)) return false;
-      reply.error("pick_failed", "\"" + name + "\" is still where it was picked from after " +
+      reply.error(ErrorCode::PickFailed, "\"" + name + "\" is still where it was picked from after " +
                                      std::to_string(attempt) + (attempt == 1 ? " attempt" : " attempts"));
       return false;
     }
@@ -38,7 +38,7 @@ bool Machine::check_pick(Reply& reply, const std::string& name, const std::strin
     std::string error;
     if (!plan_pick(scan, picked, place, steps, plan_info, error)) {
       if (!move_to(reply, "home", config_.arm.home)) return false;
-      reply.error("pick_failed", "cannot pick \"" + name + "\" again: " + error);
+      reply.error(ErrorCode::PickFailed, "cannot pick \"" + name + "\" again: " + error);
       return false;
     }
     plan_info["steps"] = steps.size();

@@ -75,10 +75,19 @@ void Reply::result(nlohmann::json result) {
   write_line(result_reply(std::move(result)), true);
 }
 
-void Reply::error(const std::string& code, const std::string& message) {
+void Reply::error(const Error& e) {
   std::lock_guard lock(mutex_);
   if (finished_.exchange(true)) return;
-  write_line(error_reply({code, message}), true);
+  write_line(error_reply(e), true);
+}
+
+void Reply::error(ErrorCode code, const std::string& message) { error(Error(code, message)); }
+
+void Reply::error(const std::string& code, const std::string& message) {
+  Error e;
+  e.code = code;
+  e.message = message;
+  error(e);
 }
 
 std::optional<Command> submit_line(const Handler& handler, std::string_view line, Reply::Sink sink,
@@ -87,7 +96,7 @@ std::optional<Command> submit_line(const Handler& handler, std::string_view line
   Error err;
   if (!parse_request(line, request, err)) {
     spdlog::debug("control: rejected request: {}: {}", err.code, err.message);
-    Reply(std::move(sink), Command::Status).error(err.code, err.message);
+    Reply(std::move(sink), Command::Status).error(err);
     return std::nullopt;
   }
   if (request.command != Command::Status) spdlog::info("control: request {}", request_json(request).dump());

@@ -47,6 +47,9 @@ class Reply {
   // A line made elsewhere (a bus message), written as it is: not a final line.
   void forward(const nlohmann::json& line);
   void result(nlohmann::json result);
+  void error(ErrorCode code, const std::string& message);
+  void error(const Error& e);  // one made elsewhere (the parser's)
+  // A code carried as data: a motion result's, an abort reason, the workspace fit's. Literal codes take ErrorCode.
   void error(const std::string& code, const std::string& message);
   bool finished() const { return finished_; }
   Command command() const { return command_; }

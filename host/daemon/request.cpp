@@ -8,32 +8,32 @@ namespace rbx1::daemon {
 
 bool parse_request(std::string_view line, Request& out, Error& error) {
   if (line.size() > kMaxRequestLine) {
-    error = {"line_too_long", "request longer than " + std::to_string(kMaxRequestLine) + " bytes"};
+    error = {ErrorCode::LineTooLong, "request longer than " + std::to_string(kMaxRequestLine) + " bytes"};
     return false;
   }
   nlohmann::json j = nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
   if (j.is_discarded()) {
-    error = {"bad_json", "request is not valid JSON"};
+    error = {ErrorCode::BadJson, "request is not valid JSON"};
     return false;
   }
   if (!j.is_object()) {
-    error = {"bad_request", "request must be a JSON object"};
+    error = {ErrorCode::BadRequest, "request must be a JSON object"};
     return false;
   }
   auto cmd = j.find("cmd");
   if (cmd == j.end()) {
-    error = {"missing_field", "request has no \"cmd\""};
+    error = {ErrorCode::MissingField, "request has no \"cmd\""};
     return false;
   }
   if (!cmd->is_string()) {
-    error = {"bad_field", "\"cmd\" must be a string"};
+    error = {ErrorCode::BadField, "\"cmd\" must be a string"};
     return false;
   }
   const std::string& name = cmd->get_ref<const std::string&>();
   const CommandSpec* spec = find_command(name);
   if (!spec) {
     std::string shown = name.size() > 40 ? name.substr(0, 40) + "..." : name;
-    error = {"unknown_command", "unknown command \"" + shown + "\""};
+    error = {ErrorCode::UnknownCommand, "unknown command \"" + shown + "\""};
     return false;
   }
   out = Request{};

@@ -10,6 +10,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "error_codes.hpp"
+
 namespace rbx1::daemon {
 
 // Longest request line accepted (bytes, newline excluded); longer lines get error "line_too_long".
@@ -49,8 +51,11 @@ struct Request {
   std::string format;  // history: "json" (default) or "csv"
 };
 
-// An error reply: {"error": {"code": code, "message": message}}. Codes are stable strings clients test.
+// An error reply: {"error": {"code": code, "message": message}}. Codes are stable strings clients test, made from
+// the one list (error_codes.hpp) only.
 struct Error {
+  Error() = default;
+  Error(ErrorCode id, std::string text) : code(code_name(id)), message(std::move(text)) {}
   std::string code;
   std::string message;
 };

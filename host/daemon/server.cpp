@@ -235,6 +235,195 @@ void take_bytes(Client& c, const Handler& handler, const char* data, size_t n) {
     }
   }
 }
+
+// One run(): the clients and the steps of a poll round (poll, read and send, accept, e-stops first, dispatch, close).
+class ServeLoop {
+ public:
+  ServeLoop(const Handler& handler, int listen_fd, int wake_fd, const ServerLimits& limits)
+      : handler_(handler), listen_fd_(listen_fd), wake_fd_(wake_fd), limits_(limits),
+        dispatcher_(handler, wake_fd, limits.requests_per_client) {}
+  ~ServeLoop() {
+    for (auto& c : clients_) c.conn->close();  // replies still running write nowhere from now on
+  }
+
+  // One round: 0, or a negative errno when poll() fails.
+  int round() {
+    std::vector<pollfd> fds;
+    if (int r = poll(fds); r <= 0) return r == -EINTR ? 0 : r;
+    if (fds[0].revents & POLLIN) {
+      uint64_t v;
+      [[maybe_unused]] ssize_t n = ::read(wake_fd_, &v, sizeof v);
+    }
+    now_ = now_ms();
+    serve(fds);
+    if (fds[1].revents & POLLIN) accept_new();
+    submit_estops();
+    dispatch();
+    close_finished();
+    return 0;
+  }
+
+ private:
+  // Polls the wake fd, the listening socket and every client; a client with lines left over from the last round
+  // is served again at once. 1, or a negative errno.
+  int poll(std::vector<pollfd>& fds) {
+    now_ = now_ms();
+    bool backlog = false;
+    int timeout = 1000;
+    fds.push_back({wake_fd_, POLLIN, 0});
+    fds.push_back({listen_fd_, POLLIN, 0});
+    for (auto& c : clients_) {
+      short events = 0;
+      size_t waiting;
+      {
+        std::lock_guard lock(c.conn->mu);
+        if (!c.conn->out.empty()) events |= POLLOUT;
+        if (c.conn->open_replies > 0) c.last_active_ms = now_;
+        waiting = c.conn->queued;
+      }
+      // A client's backlog is its own brake: not read while its requests wait.
+      if (c.lines.empty() && waiting < limits_.requests_per_client && !c.eof) events |= POLLIN;
+      backlog |= !c.lines.empty() && waiting < limits_.requests_per_client;
+      timeout = int(std::min<int64_t>(timeout, std::max<int64_t>(0, c.last_active_ms + limits_.idle_timeout_ms - now_)));
+      fds.push_back({c.conn->fd, events, 0});
+    }
+    if (::poll(fds.data(), fds.size(), backlog ? 0 : timeout) >= 0) return 1;
+    int e = errno;
+    if (e != EINTR) spdlog::error("control: poll: {}", std::strerror(e));
+    return -e;
+  }
+
+  // Reads from and sends to the clients that were polled (those accepted later were not).
+  void serve(const std::vector<pollfd>& fds) {
+    for (size_t i = 0; i + 2 < fds.size(); ++i) {
+      short ev = fds[2 + i].revents;
+      Client& c = clients_[i];
+      if (ev & POLLOUT) c.conn->flush();
+      if (ev & POLLIN) read_from(c);
+      if (ev & (POLLHUP | POLLERR | POLLNVAL)) {
+        std::lock_guard lock(c.conn->mu);
+        c.conn->drop = "the peer is gone";
+      }
+    }
+  }
+
+  void read_from(Client& c) {
+    char buf[kReadChunk];
+    ssize_t n = ::recv(c.conn->fd, buf, sizeof buf, 0);
+    if (n > 0) {
+      c.last_active_ms = now_;
+      take_bytes(c, handler_, buf, size_t(n));
+    } else if (n == 0) {
+      c.eof = true;
+    } else if (errno != EAGAIN && errno != EINTR) {
+      std::lock_guard lock(c.conn->mu);
+      c.conn->drop = "the peer is gone";
+    }
+  }
+
+  // New connections: every one gets in (beyond max_clients the least recently active one makes room), and is
+  // read at once: a client such as `rbx1 estop` sends its request right after connecting.
+  void accept_new() {
+    for (int k = 0; k < kAcceptPerRound; ++k) {
+      int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
+      if (fd < 0) break;
+      if (clients_.size() >= limits_.max_clients) evict_one();
+      Client c;
+      c.conn = std::make_shared<Connection>();
+      c.conn->fd = fd;
+      c.conn->wake_fd = wake_fd_;
+      c.conn->max_output = limits_.max_output;
+      c.id = next_id_++;
+      c.last_active_ms = now_;
+      read_from(c);
+      clients_.push_back(std::move(c));
+    }
+  }
+
+  // Makes room for a new connection: the least recently active client leaves, one with nothing open first.
+  void evict_one() {
+    auto victim = clients_.end();
+    bool victim_open = true;
+    for (auto it = clients_.begin(); it != clients_.end(); ++it) {
+      bool open = open_replies(*it) > 0 || !it->lines.empty();
+      if (victim == clients_.end() || (victim_open && !open) ||
+          (open == victim_open && it->last_active_ms < victim->last_active_ms)) {
+        victim = it;
+        victim_open = open;
+      }
+    }
+    if (victim == clients_.end()) return;
+    spdlog::info("control: client {} disconnected to make room (more than {} connections)", victim->id,
+                 limits_.max_clients);
+    victim->conn->write(error_reply({ErrorCode::Busy, "disconnected: more than " + std::to_string(limits_.max_clients) +
+                                                          " control connections"}).dump(), false);
+    victim->conn->close();
+    clients_.erase(victim);
+  }
+
+  // An e-stop first, wherever it waits: on this thread, before any other request.
+  void submit_estops() {
+    for (auto& c : clients_) {
+      for (auto it = c.lines.begin(); it != c.lines.end();) {
+        if (is_estop(*it)) {
+          std::string line = std::move(*it);
+          it = c.lines.erase(it);
+          submit(c, handler_, line);
+        } else {
+          ++it;
+        }
+      }
+    }
+  }
+
+  // Then the others' requests to the dispatcher, a bounded number waiting per client.
+  void dispatch() {
+    for (auto& c : clients_)
+      while (!c.lines.empty() && queued(c) < limits_.requests_per_client) {
+        dispatcher_.push(c.conn, std::move(c.lines.front()));
+        c.lines.pop_front();
+      }
+  }
+
+  // Closes what must go: overflowed or vanished peers, finished half-closed ones, idle ones.
+  void close_finished() {
+    std::erase_if(clients_, [&](Client& c) {
+      const char* drop;
+      bool done;
+      int open;
+      {
+        std::lock_guard lock(c.conn->mu);
+        drop = c.conn->drop;
+        open = c.conn->open_replies;
+        done = c.eof && open == 0 && c.lines.empty() && c.conn->out.empty();
+      }
+      bool idle = open == 0 && c.lines.empty() && now_ - c.last_active_ms >= limits_.idle_timeout_ms;
+      if (!drop && !done && !idle) return false;
+      if (drop) spdlog::log(std::strcmp(drop, "the peer is gone") ? spdlog::level::warn : spdlog::level::debug,
+                            "control: client {} disconnected: {}", c.id, drop);
+      else if (idle) spdlog::info("control: client {} idle for {} ms: disconnected", c.id, limits_.idle_timeout_ms);
+      c.conn->close();
+      return true;
+    });
+  }
+
+  static size_t queued(const Client& c) {
+    std::lock_guard lock(c.conn->mu);
+    return c.conn->queued;
+  }
+  static int open_replies(const Client& c) {
+    std::lock_guard lock(c.conn->mu);
+    return c.conn->open_replies;
+  }
+
+  const Handler& handler_;
+  int listen_fd_, wake_fd_;
+  const ServerLimits& limits_;
+  std::vector<Client> clients_;  // before dispatcher_: the dispatcher (its thread) goes first
+  Dispatcher dispatcher_;
+  uint64_t next_id_ = 1;
+  int64_t now_ = 0;
+};
 }  // namespace
 
 Server::~Server() {
@@ -295,159 +484,9 @@ void Server::stop() {
 }
 
 int Server::run(const Handler& handler) {
-  std::vector<Client> clients;
-  uint64_t next_id = 1;
-  Dispatcher dispatcher(handler, wake_fd_, limits_.requests_per_client);
-  auto queued = [](const Client& c) {
-    std::lock_guard lock(c.conn->mu);
-    return c.conn->queued;
-  };
-  auto open_replies = [](const Client& c) {
-    std::lock_guard lock(c.conn->mu);
-    return c.conn->open_replies;
-  };
-  // Makes room for a new connection: the least recently active client leaves, one with nothing open first.
-  auto evict_one = [&] {
-    auto victim = clients.end();
-    bool victim_open = true;
-    for (auto it = clients.begin(); it != clients.end(); ++it) {
-      bool open = open_replies(*it) > 0 || !it->lines.empty();
-      if (victim == clients.end() || (victim_open && !open) ||
-          (open == victim_open && it->last_active_ms < victim->last_active_ms)) {
-        victim = it;
-        victim_open = open;
-      }
-    }
-    if (victim == clients.end()) return;
-    spdlog::info("control: client {} disconnected to make room (more than {} connections)", victim->id,
-                 limits_.max_clients);
-    victim->conn->write(error_reply({"busy", "disconnected: more than " + std::to_string(limits_.max_clients) +
-                                                 " control connections"}).dump(), false);
-    victim->conn->close();
-    clients.erase(victim);
-  };
-
-  while (!stopping_) {
-    int64_t now = now_ms();
-    // Poll: a client with lines left over from the last round is served again at once.
-    bool backlog = false;
-    int timeout = 1000;
-    std::vector<pollfd> fds;
-    fds.push_back({wake_fd_, POLLIN, 0});
-    fds.push_back({listen_fd_, POLLIN, 0});
-    for (auto& c : clients) {
-      short events = 0;
-      size_t waiting;
-      {
-        std::lock_guard lock(c.conn->mu);
-        if (!c.conn->out.empty()) events |= POLLOUT;
-        if (c.conn->open_replies > 0) c.last_active_ms = now;
-        waiting = c.conn->queued;
-      }
-      // A client's backlog is its own brake: not read while its requests wait.
-      if (c.lines.empty() && waiting < limits_.requests_per_client && !c.eof) events |= POLLIN;
-      backlog |= !c.lines.empty() && waiting < limits_.requests_per_client;
-      timeout = int(std::min<int64_t>(timeout, std::max<int64_t>(0, c.last_active_ms + limits_.idle_timeout_ms - now)));
-      fds.push_back({c.conn->fd, events, 0});
-    }
-    int r = ::poll(fds.data(), fds.size(), backlog ? 0 : timeout);
-    if (r < 0) {
-      if (errno == EINTR) continue;
-      int e = errno;
-      spdlog::error("control: poll: {}", std::strerror(e));
-      return -e;
-    }
-    if (fds[0].revents & POLLIN) {
-      uint64_t v;
-      [[maybe_unused]] ssize_t n = ::read(wake_fd_, &v, sizeof v);
-    }
-    now = now_ms();
-    const size_t polled = clients.size();  // clients accepted below were not in this poll
-
-    // Read and send.
-    auto read_from = [&](Client& c) {
-      char buf[kReadChunk];
-      ssize_t n = ::recv(c.conn->fd, buf, sizeof buf, 0);
-      if (n > 0) {
-        c.last_active_ms = now;
-        take_bytes(c, handler, buf, size_t(n));
-      } else if (n == 0) {
-        c.eof = true;
-      } else if (errno != EAGAIN && errno != EINTR) {
-        std::lock_guard lock(c.conn->mu);
-        c.conn->drop = "the peer is gone";
-      }
-    };
-    for (size_t i = 0; i < polled; ++i) {
-      short ev = fds[2 + i].revents;
-      Client& c = clients[i];
-      if (ev & POLLOUT) c.conn->flush();
-      if (ev & POLLIN) read_from(c);
-      if (ev & (POLLHUP | POLLERR | POLLNVAL)) {
-        std::lock_guard lock(c.conn->mu);
-        c.conn->drop = "the peer is gone";
-      }
-    }
-
-    // New connections: every one gets in (beyond max_clients the least recently active one makes room), and is
-    // read at once: a client such as `rbx1 estop` sends its request right after connecting.
-    if (fds[1].revents & POLLIN) {
-      for (int k = 0; k < kAcceptPerRound; ++k) {
-        int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
-        if (fd < 0) break;
-        if (clients.size() >= limits_.max_clients) evict_one();
-        Client c;
-        c.conn = std::make_shared<Connection>();
-        c.conn->fd = fd;
-        c.conn->wake_fd = wake_fd_;
-        c.conn->max_output = limits_.max_output;
-        c.id = next_id++;
-        c.last_active_ms = now;
-        read_from(c);
-        clients.push_back(std::move(c));
-      }
-    }
-
-    // An e-stop first, wherever it waits.
-    for (auto& c : clients) {
-      for (auto it = c.lines.begin(); it != c.lines.end();) {
-        if (is_estop(*it)) {
-          std::string line = std::move(*it);
-          it = c.lines.erase(it);
-          submit(c, handler, line);
-        } else {
-          ++it;
-        }
-      }
-    }
-    // Then the others' requests to the dispatcher, a bounded number waiting per client.
-    for (auto& c : clients)
-      while (!c.lines.empty() && queued(c) < limits_.requests_per_client) {
-        dispatcher.push(c.conn, std::move(c.lines.front()));
-        c.lines.pop_front();
-      }
-
-    // Close what must go: overflowed or vanished peers, finished half-closed ones, idle ones.
-    std::erase_if(clients, [&](Client& c) {
-      const char* drop;
-      bool done;
-      int open;
-      {
-        std::lock_guard lock(c.conn->mu);
-        drop = c.conn->drop;
-        open = c.conn->open_replies;
-        done = c.eof && open == 0 && c.lines.empty() && c.conn->out.empty();
-      }
-      bool idle = open == 0 && c.lines.empty() && now - c.last_active_ms >= limits_.idle_timeout_ms;
-      if (!drop && !done && !idle) return false;
-      if (drop) spdlog::log(std::strcmp(drop, "the peer is gone") ? spdlog::level::warn : spdlog::level::debug,
-                            "control: client {} disconnected: {}", c.id, drop);
-      else if (idle) spdlog::info("control: client {} idle for {} ms: disconnected", c.id, limits_.idle_timeout_ms);
-      c.conn->close();
-      return true;
-    });
-  }
-  for (auto& c : clients) c.conn->close();  // replies still running write nowhere from now on
+  ServeLoop loop(handler, listen_fd_, wake_fd_, limits_);
+  while (!stopping_)
+    if (int r = loop.round(); r < 0) return r;
   return 0;
 }
 

@@ -322,13 +322,13 @@ void Machine::job_sort(Reply& reply, const Request& request) {
   } else if (request.recipe.is_string()) {
     label = request.recipe;
     if (!RecipeBook(config_.daemon.state_dir).find(request.recipe.get<std::string>(), recipe, error))
-      return reply.error("unknown_recipe", error);
+      return reply.error(ErrorCode::UnknownRecipe, error);
   } else {
     label = request.recipe;
-    if (!recipe_from_json(request.recipe, recipe, error)) return reply.error("bad_recipe", error);
+    if (!recipe_from_json(request.recipe, recipe, error)) return reply.error(ErrorCode::BadRecipe, error);
   }
   if (!check_recipe_here(recipe, request.command == Command::Clear, error))
-    return reply.error(request.command == Command::Clear ? "unknown_place" : "bad_recipe", error);
+    return reply.error(request.command == Command::Clear ? ErrorCode::UnknownPlace : ErrorCode::BadRecipe, error);
   if (!ready(reply)) return;
   job_control_ = JobControl::Run;
   SortRun(*this, reply, command_name(request.command), std::move(recipe), std::move(label), request.max_picks).run();
@@ -362,11 +362,11 @@ bool Machine::handle_jobs_request(const Request& request, Reply& reply) {
       bool sorting = running_ && (running_->command == Command::Sort || running_->command == Command::Clear) &&
                      running_reply_ && !running_reply_->finished();
       if (!sorting) {
-        reply.error("no_job", "no sort or clear is running");
+        reply.error(ErrorCode::NoJob, "no sort or clear is running");
         return true;
       }
       if (request.command == Command::Resume && job_control_ == JobControl::Cancel) {
-        reply.error("cancelled", "the job is being cancelled");
+        reply.error(ErrorCode::Cancelled, "the job is being cancelled");
         return true;
       }
       job_control_ = request.command == Command::Pause    ? JobControl::Pause
@@ -380,7 +380,7 @@ bool Machine::handle_jobs_request(const Request& request, Reply& reply) {
       history::Query q{request.since, request.job, request.limit ? request.limit : 100};
       json j = history_ ? history_->query(q, error) : json{{"jobs", json::array()}, {"picks", json::array()}};
       if (!error.empty()) {
-        reply.error("history_failed", error);
+        reply.error(ErrorCode::HistoryFailed, error);
         return true;
       }
       if (request.format == "csv") j["csv"] = history::History::picks_csv(j["picks"]);
@@ -391,11 +391,11 @@ bool Machine::handle_jobs_request(const Request& request, Reply& reply) {
       Recipe recipe;
       std::string error;
       if (!recipe_from_json(request.recipe, recipe, error) || !check_recipe_here(recipe, false, error)) {
-        reply.error("bad_recipe", error);
+        reply.error(ErrorCode::BadRecipe, error);
         return true;
       }
       if (!RecipeBook(config_.daemon.state_dir).save(request.name, recipe, error)) {
-        reply.error("state_failed", error);
+        reply.error(ErrorCode::StateFailed, error);
         return true;
       }
       reply.result({{"saved", request.name}, {"recipe", recipe_json(recipe)}, {"file", RecipeBook(config_.daemon.state_dir).path()}});

@@ -56,6 +56,12 @@ struct StreamRequest {
   uint8_t resp[RBX1_MAX_PAYLOAD] = {};
 };
 
+// A negative errno of the calls below in words, with what to do ("no answer from the firmware after every
+// retransmission (check the cable and the board's power)"); messages to users carry this, never the number.
+std::string error_text(int r);
+// "PORT: WHAT failed: " and error_text(r): a request that got no answer, for a user's message.
+std::string failed(const std::string& port, const std::string& what, int r);
+
 // One link to one firmware. Requests (request(), the typed helpers and stream()) are serialised, whichever thread
 // calls: request() has one in flight, stream() up to window() (PROTOCOL.md "Window"). estop() bypasses that
 // queue. A reader thread decodes every incoming byte and hands each answer to the waiting caller.

@@ -45,21 +45,21 @@ bool parse_iso_utc(const std::string& text, double& seconds) {
 bool decode_command(std::string_view payload, Incoming& out, daemon::Error& error) {
   out = Incoming{};
   if (payload.size() > kMaxCommandPayload) {
-    error = {"too_large", "command larger than " + std::to_string(kMaxCommandPayload) + " bytes"};
+    error = {daemon::ErrorCode::TooLarge, "command larger than " + std::to_string(kMaxCommandPayload) + " bytes"};
     return false;
   }
   nlohmann::json j = nlohmann::json::parse(payload, nullptr, /*allow_exceptions=*/false);
   if (j.is_discarded()) {
-    error = {"bad_json", "command is not valid JSON"};
+    error = {daemon::ErrorCode::BadJson, "command is not valid JSON"};
     return false;
   }
   if (!j.is_object()) {
-    error = {"bad_request", "command must be a JSON object"};
+    error = {daemon::ErrorCode::BadRequest, "command must be a JSON object"};
     return false;
   }
   if (auto id = j.find("id"); id != j.end()) {
     if (!valid_id(*id)) {
-      error = {"bad_field", "\"id\" must be an integer or a string of 1..128 printable characters"};
+      error = {daemon::ErrorCode::BadField, "\"id\" must be an integer or a string of 1..128 printable characters"};
       return false;
     }
     out.id = *id;
@@ -69,7 +69,7 @@ bool decode_command(std::string_view payload, Incoming& out, daemon::Error& erro
     double seconds = 0;
     if (ts->is_number() && std::isfinite(ts->get<double>())) seconds = ts->get<double>();
     else if (!ts->is_string() || !parse_iso_utc(ts->get<std::string>(), seconds)) {
-      error = {"bad_field", "\"ts\" must be Unix seconds or ISO-8601 UTC (2026-11-22T01:02:03.456Z)"};
+      error = {daemon::ErrorCode::BadField, "\"ts\" must be Unix seconds or ISO-8601 UTC (2026-11-22T01:02:03.456Z)"};
       return false;
     }
     out.ts = seconds;

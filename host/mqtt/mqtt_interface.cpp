@@ -224,7 +224,10 @@ void MqttInterface::command(const mosquitto_message* msg, const mosquitto_proper
 void MqttInterface::refuse(const Destination& to, const std::string& code, const std::string& message) {
   ++refused_;
   spdlog::info("mqtt: command refused: {}: {}", code, message);
-  reply(to, with_id(daemon::error_reply({code, message}).dump(), to.id));
+  daemon::Error e;
+  e.code = code;
+  e.message = message;
+  reply(to, with_id(daemon::error_reply(e).dump(), to.id));
 }
 
 void MqttInterface::reply(const Destination& to, const std::string& final_line) {
