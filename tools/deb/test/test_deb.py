@@ -1,8 +1,9 @@
 """test_deb.py - the rbx1 Debian package: built by tools/deb/build-deb (`make deb`), checked by lintian (no error;
 warnings printed), then installed, used and removed on this machine as root (CI's throwaway machine): files where
 they belong, the conffile, the rbx1 user and its groups, the state directory, nothing enabled or started, the
-packaged rbx1-flash uploading to the simulated board, `dpkg -r` keeping the state directory and `dpkg -P` removing
-it. Leaves the machine as it found it. Env: RBX1_SOURCE_DIR, AVRBOARD."""
+Python client importable, the default URDF valid (check_urdf), the packaged rbx1-flash uploading to the simulated
+board, `dpkg -r` keeping the state directory and `dpkg -P` removing it and the client's compiled files. Leaves the
+machine as it found it. Env: RBX1_SOURCE_DIR, AVRBOARD."""
 import fcntl
 import grp
 import gzip
@@ -21,7 +22,10 @@ FILES = ["/usr/bin/rbx1d", "/usr/bin/rbx1", "/usr/bin/rbx1-harness", "/usr/bin/r
          "/usr/share/rbx1/python/rbx1proto/link.py", "/lib/systemd/system/rbx1d.service",
          "/lib/udev/rules.d/99-rbx1.rules", "/etc/rbx1/rbx1.toml", "/usr/share/doc/rbx1/copyright",
          "/usr/share/man/man1/rbx1.1.gz", "/usr/share/man/man8/rbx1d.8.gz", "/usr/share/man/man1/rbx1-flash.1.gz",
-         "/usr/share/man/man1/rbx1-harness.1.gz"]
+         "/usr/share/man/man1/rbx1-harness.1.gz", "/usr/share/rbx1/rbx1.urdf"]
+# The Python client library (host/python/rbx1), every module of it, on python3's path.
+CLIENT = "/usr/lib/python3/dist-packages/rbx1"
+FILES += [f"{CLIENT}/{m}" for m in sorted(os.listdir(os.path.join(SRC, "host", "python", "rbx1"))) if m.endswith(".py")]
 
 
 def run(*cmd, check=True, **kw):
@@ -109,6 +113,16 @@ def test_man_pages_say_what_help_says(deb, tmp_path):
                 assert f".SS {command}\n" in text, f"rbx1 {command} not in {page}"
 
 
+def test_urdf_is_the_default_arms_and_valid(deb, tmp_path):
+    """The packaged URDF is what rbx1 urdf prints for the bundled config, and Debian's check_urdf accepts it."""
+    run("dpkg-deb", "-x", deb, str(tmp_path))
+    urdf = tmp_path / "usr" / "share" / "rbx1" / "rbx1.urdf"
+    here = run(os.path.join(SRC, "build", "bin", "rbx1"), "urdf", "--config", os.path.join(SRC, "data", "rbx1.toml"))
+    assert urdf.read_text() == here.stdout
+    r = run("check_urdf", str(urdf))
+    assert "robot name is: rbx1\n" in r.stdout and "root Link: base_link" in r.stdout, r.stdout
+
+
 @pytest.fixture
 def machine():
     """Root only; refuses to touch a machine where the package or its paths already are; restores users, groups
@@ -164,6 +178,10 @@ def test_install_flash_remove_purge(deb, machine, tmp_path):
     assert run("/usr/bin/rbx1d", "--config", "/etc/rbx1/rbx1.toml", "--check-syntax").stdout == "OK\n"
     assert "handshake" in run("/usr/bin/rbx1-harness", "--list").stdout
     assert run("/usr/bin/rbx1", "--help").returncode == 0
+    # The Python client imports from python3's path alone (not this checkout's host/python), byte-compiled.
+    script = "import rbx1; print(rbx1.__file__, rbx1.Arm.__name__, rbx1.ObjectAbsent.__name__)"
+    r = run("/usr/bin/python3", "-c", script, cwd=str(tmp_path), env={"PATH": "/usr/bin:/bin"})
+    assert r.stdout.split() == [f"{CLIENT}/__init__.py", "Arm", "ObjectAbsent"], r.stdout
     r = run("/usr/bin/rbx1-flash", check=False)
     assert r.returncode == 2 and r.stderr.startswith("usage: rbx1-flash PORT"), r.stderr
 
@@ -189,4 +207,5 @@ def test_install_flash_remove_purge(deb, machine, tmp_path):
     assert os.path.isfile("/var/lib/rbx1/library.json") and os.path.isfile("/etc/rbx1/rbx1.toml")
     dpkg("-P", "rbx1")
     assert not os.path.exists("/var/lib/rbx1") and not os.path.exists("/etc/rbx1")
+    assert not os.path.exists(CLIENT), os.listdir(CLIENT)  # no byte-compiled file left behind
     assert run("dpkg-query", "-W", "rbx1", check=False).returncode != 0
