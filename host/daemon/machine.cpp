@@ -208,8 +208,7 @@ void Machine::handle(const Request& request, std::shared_ptr<Reply> reply) {
       unsigned topics = 0;
       for (const auto& name : request.topics)
         if (Topic t; topic_from_name(name, t)) topics |= unsigned(t);
-      streams_.start(topics ? topics : unsigned(Topic::Status) | unsigned(Topic::Events) | unsigned(Topic::Scans),
-                     std::move(reply));
+      streams_.start(topics ? topics : kAllTopics, std::move(reply));
       return;
     }
     case Command::Estop: {
