@@ -104,7 +104,8 @@ MqttCounters MqttInterface::counters() const {
 // ---- the network thread ---------------------------------------------------------------------------------------
 
 void MqttInterface::network() {
-  int rc = mosquitto_connect_bind_v5(mosq_, config_.host.c_str(), config_.port, config_.keepalive_s, nullptr, nullptr);
+  int rc = mosquitto_connect_bind_v5(mosq_, config_.host.c_str(), config_.port, broker_keepalive_s(config_.keepalive_s),
+                                     nullptr, nullptr);
   double delay_s = 1;
   for (;;) {
     if (stopping_) return;
@@ -137,8 +138,9 @@ void MqttInterface::connected_now() {
   waiting_ = 0;  // what libmosquitto still holds from before is resent by it, not counted again
   connected_ = true;
   ++connects_;
-  spdlog::info("mqtt: connected to {}:{} as {} (prefix {})", config_.host, config_.port, config_.client_id,
-               config_.prefix);
+  spdlog::info("mqtt: connected to {}:{} as {} (prefix {}, keepalive {} s sent for keepalive_s {})", config_.host,
+               config_.port, config_.client_id, config_.prefix, broker_keepalive_s(config_.keepalive_s),
+               config_.keepalive_s);
   std::string cmd = topic("cmd");
   // Retained commands are never sent to us at subscription (and refused if they come anyway).
   mosquitto_subscribe_v5(mosq_, nullptr, cmd.c_str(), 1, MQTT_SUB_OPT_SEND_RETAIN_NEVER, nullptr);

@@ -36,6 +36,16 @@ TEST(MqttConfig, DefaultsFollowArmId) {
   EXPECT_EQ(tls.port, 8883);
 }
 
+// The keepalive sent to the broker: within 1.5 x keepalive_s despite mosquitto 2.0's 6 s check, where that can be.
+TEST(MqttConfig, BrokerKeepaliveFitsTheBrokersCheck) {
+  EXPECT_EQ(mqtt::broker_keepalive_s(5), 5);    // cannot: 5 is libmosquitto's least
+  EXPECT_EQ(mqtt::broker_keepalive_s(9), 5);
+  EXPECT_EQ(mqtt::broker_keepalive_s(10), 5);   // 7 + 7 <= 15
+  EXPECT_EQ(mqtt::broker_keepalive_s(20), 15);  // 22 + 7 <= 30
+  EXPECT_EQ(mqtt::broker_keepalive_s(60), 55);
+  EXPECT_EQ(mqtt::broker_keepalive_s(3600), 3595);
+}
+
 TEST(MqttConfig, ErrorsNameTheirKey) {
   struct Case {
     const char* text;

@@ -27,8 +27,7 @@ def free_port():
 class Broker:
     """mosquitto with one user per arm (its own prefix only) and a controller (reads all, writes commands)."""
 
-    def __init__(self, tmp, arms, conf=""):
-        """conf: more mosquitto.conf lines (e.g. "max_keepalive 2")."""
+    def __init__(self, tmp, arms):
         self.dir = Path(tmp) / "broker"
         self.dir.mkdir(parents=True, exist_ok=True)
         self.port = free_port()
@@ -46,7 +45,7 @@ class Broker:
         (self.dir / "mosquitto.conf").write_text(
             f"user {pwd.getpwuid(os.geteuid()).pw_name}\nallow_anonymous false\npassword_file {passwd}\n"
             f"acl_file {self.dir / 'acl'}\npersistence false\nlog_dest file {self.dir / 'mosquitto.log'}\n"
-            f"listener {self.port} 127.0.0.1\n{conf}")
+            f"listener {self.port} 127.0.0.1\n")
         self.proc = None
         self.start()
 
