@@ -228,6 +228,12 @@ void print_bus_line(const nlohmann::json& ev) {
                                                     : nlohmann::json::array();
     line = std::to_string(objects.size()) + " objects";
     for (const auto& o : objects) line += "  #" + std::to_string(o.value("index", 0)) + " " + compact(o.value("label", nlohmann::json()));
+  } else if (topic == "picks") {
+    line = "#" + std::to_string(ev.value("id", 0)) + " job " + std::to_string(ev.value("job", 0)) + "  " +
+           compact(ev.value("class", nlohmann::json())) + " -> " + compact(ev.value("place", nlohmann::json())) + "  " +
+           ev.value("outcome", "?");
+    if (auto why = ev.value("reason", nlohmann::json()); why.is_string() && !why.get<std::string>().empty())
+      line += " (" + why.get<std::string>() + ")";
   } else if (topic == "events") {
     line = "#" + std::to_string(ev.value("req", 0)) + " " + ev.value("cmd", "?") + "  ";
     if (ev.contains("request")) line += "request " + ev["request"].dump();
@@ -247,13 +253,13 @@ void print_bus_line(const nlohmann::json& ev) {
   std::fflush(stdout);
 }
 
-// rbx1 watch [--topics status,events,scans]: the bus, one readable line each (--json: the raw lines).
+// rbx1 watch [--topics status,events,scans,picks]: the bus, one readable line each (--json: the raw lines).
 void add_watch_command(CLI::App& app, std::shared_ptr<DaemonOptions> o, int& exit_code) {
   auto topics = std::make_shared<std::vector<std::string>>();
   CLI::App* watch = add(app, o, "watch", daemon::command_spec(daemon::Command::Subscribe).help);
-  watch->add_option("--topics", *topics, "status, events, scans (default: all)")
+  watch->add_option("--topics", *topics, "status, events, scans, picks (default: all)")
       ->delimiter(',')
-      ->check(CLI::IsMember({"status", "events", "scans"}));
+      ->check(CLI::IsMember({"status", "events", "scans", "picks"}));
   watch->callback([o, topics, &exit_code] {
     daemon::Request r;
     r.command = daemon::Command::Subscribe;

@@ -10,7 +10,7 @@ namespace {
 constexpr struct {
   Topic topic;
   const char* name;
-} kTopics[] = {{Topic::Status, "status"}, {Topic::Events, "events"}, {Topic::Scans, "scans"}};
+} kTopics[] = {{Topic::Status, "status"}, {Topic::Events, "events"}, {Topic::Scans, "scans"}, {Topic::Picks, "picks"}};
 }  // namespace
 
 const char* topic_name(Topic t) {

@@ -18,8 +18,11 @@ struct Scan;
 
 namespace rbx1::daemon {
 
-// What a subscriber can ask for. Each message carries its topic in "topic" ("status", "events", "scans").
-enum class Topic : unsigned { Status = 1, Events = 2, Scans = 4 };
+// What a subscriber can ask for. Each message carries its topic in "topic" ("status", "events", "scans", "picks":
+// each row of the history's picks table as it is written, the same fields as `rbx1 history --json`).
+enum class Topic : unsigned { Status = 1, Events = 2, Scans = 4, Picks = 8 };
+inline constexpr unsigned kAllTopics =
+    unsigned(Topic::Status) | unsigned(Topic::Events) | unsigned(Topic::Scans) | unsigned(Topic::Picks);
 const char* topic_name(Topic t);
 // "status" -> Topic::Status; false for an unknown name.
 bool topic_from_name(const std::string& name, Topic& out);

@@ -37,7 +37,7 @@ void BusStreams::pump(Stream& s, unsigned topics, const std::shared_ptr<Reply>& 
     reply->forward(line);
   };
   nlohmann::json names = nlohmann::json::array();
-  for (Topic t : {Topic::Status, Topic::Events, Topic::Scans})
+  for (Topic t : {Topic::Status, Topic::Events, Topic::Scans, Topic::Picks})
     if (topics & unsigned(t)) names.push_back(topic_name(t));
   reply->event("subscribed", {{"topics", names}});
   if (topics & unsigned(Topic::Status))

@@ -61,7 +61,7 @@ void write_calibrate(const Request& r, nlohmann::json& j) {
 }
 
 // The topics of the bus (bus.hpp), as a subscribe request names them.
-constexpr const char* kTopicNames = "status|events|scans";
+constexpr const char* kTopicNames = "status|events|scans|picks";
 
 using F = FieldType;
 // Never destroyed: a detached thread's reply may still name its command while the process exits.
@@ -97,10 +97,11 @@ const std::vector<CommandSpec>& kTable = *new std::vector<CommandSpec>{
       {"marker", F::Integer, false, &Request::index, "record: the marker's id", 0, 999}},
      check_calibrate, write_calibrate},
     {Command::Subscribe, "subscribe", Access::Read, Mode::Immediate,
-     "stream the bus (status, events, scans) as JSON lines until the client closes",
+     "stream the bus (status, events, scans, picks) as JSON lines until the client closes",
      {{"topics", F::Names, false, &Request::topics, "topics to stream (default: all)", 0, 0, kTopicNames}}},
     {Command::Scene, "scene", Access::Read, Mode::Immediate,
-     "the arm's world for a 3D view: URDF, table, places, camera view, the last scan's objects in the base frame", {}},    // The cell's jobs (sort_jobs.cpp; jobs_request.cpp checks the recipe).
+     "the arm's world for a 3D view: URDF, table, places, camera view, the last scan's objects in the base frame", {}},
+    // The cell's jobs (sort_jobs.cpp; jobs_request.cpp checks the recipe).
     {Command::Sort, "sort", Access::Act, Mode::Job,
      "sort the table: each class to its recipe's place, until nothing the recipe maps is left",
      {{"recipe", F::Any, true, &Request::recipe, "a saved recipe's name, or {\"CLASS\": \"PLACE\", \"*\": ..., \"unknown\": ...}"},

@@ -234,8 +234,7 @@ void Machine::answer_subscribe(const Request& request, std::shared_ptr<Reply> re
   unsigned topics = 0;
   for (const auto& name : request.topics)
     if (Topic t; topic_from_name(name, t)) topics |= unsigned(t);
-  streams_.start(topics ? topics : unsigned(Topic::Status) | unsigned(Topic::Events) | unsigned(Topic::Scans),
-                 std::move(reply));
+  streams_.start(topics ? topics : kAllTopics, std::move(reply));
 }
 
 void Machine::answer_estop(Reply& reply) {

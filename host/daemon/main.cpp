@@ -128,7 +128,8 @@ int main(int argc, char** argv) {
         config.mqtt, config.daemon.arm_id, machine.bus(),
         [&machine](const rbx1::daemon::Request& r, std::shared_ptr<rbx1::daemon::Reply> reply) {
           machine.handle(r, std::move(reply));
-        });
+        },
+        config.daemon.state_dir);
     if (mqtt->start(error) < 0) {
       spdlog::error("{}", error);
       if (ros2) ros2->stop();

@@ -131,9 +131,14 @@ class SortRun {
     write(p.row);
   }
 
+  // The row into the history, then the row as the history gives it back onto the bus (MQTT's pick topic).
   void write(const history::PickRow& row) {
     std::string error;
-    if (m_.history_ && job_ && !m_.history_->add_pick(row, error)) spdlog::error("history: {}", error);
+    if (!m_.history_ || !job_) return;
+    int64_t id = m_.history_->add_pick(row, error);
+    json written = id ? m_.history_->pick(id, error) : json();
+    if (written.is_object()) m_.bus_.publish(Topic::Picks, std::move(written));
+    if (!error.empty()) spdlog::error("history: {}", error);
   }
 
   // Paused: the arm holds at the scan pose, the firmware's heartbeat fed, until resume, cancel or an e-stop.

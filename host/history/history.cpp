@@ -81,6 +81,29 @@ int64_t run_write(sqlite3* db, Stmt& st, std::string& error) {
 
 std::string text_or_empty(const nlohmann::json& v) { return v.is_string() ? v.get<std::string>() : ""; }
 
+// A pick row as the history request gives it (`rbx1 history --json`); the one SELECT behind query() and pick().
+constexpr const char* kPickSelect =
+    "SELECT p.id, p.job, p.ts, p.class, p.match_score, p.grip_opening_cm, p.grip_angle_deg, p.place, p.phases_ms, "
+    "p.cycle_ms, p.outcome, p.reason, p.attempt, p.scan, s.image FROM picks p LEFT JOIN scans s ON s.id = p.scan";
+
+nlohmann::json read_picks(Stmt& st, std::string& error) {
+  static const char* kNames[] = {"id",       "job",       "ts",      "class",   "match_score",
+                                 "grip_opening_cm", "grip_angle_deg", "place", "phases_ms", "cycle_ms",
+                                 "outcome",  "reason",    "attempt", "scan",    "image"};
+  nlohmann::json rows = nlohmann::json::array();
+  int rc;
+  while ((rc = st.step()) == SQLITE_ROW) {
+    nlohmann::json j;
+    for (int i = 0; i < 15; ++i) j[kNames[i]] = st.column(i);
+    j["phases_ms"] = nlohmann::json::parse(text_or_empty(j["phases_ms"]), nullptr, false);
+    if (j["phases_ms"].is_discarded()) j["phases_ms"] = nlohmann::json::object();
+    j["image"] = j["image"].is_string();
+    rows.push_back(std::move(j));
+  }
+  if (rc != SQLITE_DONE) error = st.error();
+  return rows;
+}
+
 }  // namespace
 
 void parse_history_config(config::Section s, HistoryConfig& out) {
@@ -255,28 +278,23 @@ nlohmann::json History::query(const Query& q, std::string& error) {
     }
     if (rc != SQLITE_DONE) error = st.error();
   }
-  Stmt st(db_,
-          "SELECT p.id, p.job, p.ts, p.class, p.match_score, p.grip_opening_cm, p.grip_angle_deg, p.place, "
-          "p.phases_ms, p.cycle_ms, p.outcome, p.reason, p.attempt, p.scan, s.image FROM picks p LEFT JOIN scans s "
-          "ON s.id = p.scan WHERE p.ts >= ? AND (? = 0 OR p.job = ?) ORDER BY p.id DESC LIMIT ?");
+  const std::string sql =
+      std::string(kPickSelect) + " WHERE p.ts >= ? AND (? = 0 OR p.job = ?) ORDER BY p.id DESC LIMIT ?";
+  Stmt st(db_, sql.c_str());
   st.bind(1, q.since);
   st.bind(2, q.job);
   st.bind(3, q.job);
   st.bind(4, int64_t(q.limit));
-  static const char* kNames[] = {"id",       "job",       "ts",      "class",   "match_score",
-                                 "grip_opening_cm", "grip_angle_deg", "place", "phases_ms", "cycle_ms",
-                                 "outcome",  "reason",    "attempt", "scan",    "image"};
-  int rc;
-  while ((rc = st.step()) == SQLITE_ROW) {
-    nlohmann::json j;
-    for (int i = 0; i < 15; ++i) j[kNames[i]] = st.column(i);
-    j["phases_ms"] = nlohmann::json::parse(text_or_empty(j["phases_ms"]), nullptr, false);
-    if (j["phases_ms"].is_discarded()) j["phases_ms"] = nlohmann::json::object();
-    j["image"] = j["image"].is_string();
-    out["picks"].push_back(std::move(j));
-  }
-  if (rc != SQLITE_DONE) error = st.error();
+  out["picks"] = read_picks(st, error);
   return out;
+}
+
+nlohmann::json History::pick(int64_t id, std::string& error) {
+  std::lock_guard lock(mu_);
+  Stmt st(db_, (std::string(kPickSelect) + " WHERE p.id = ?").c_str());
+  st.bind(1, id);
+  nlohmann::json rows = read_picks(st, error);
+  return rows.empty() ? nlohmann::json() : rows[0];
 }
 
 std::string History::picks_csv(const nlohmann::json& picks) {

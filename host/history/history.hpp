@@ -61,6 +61,8 @@ class History {
   // A scan's row and its JPEG (may be empty: no image); then the oldest images beyond max_mb are removed.
   int64_t add_scan(int64_t job, int objects, const std::vector<unsigned char>& jpeg, std::string& error);
   int64_t add_pick(const PickRow& row, std::string& error);
+  // One pick row as query() gives it (null when there is none): what the bus's picks topic carries.
+  nlohmann::json pick(int64_t id, std::string& error);
   // {"jobs": [...], "picks": [...]}, newest first.
   nlohmann::json query(const Query& q, std::string& error);
   // The same picks as CSV (a header line, then one line per pick).

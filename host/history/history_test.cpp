@@ -73,7 +73,8 @@ TEST(History, JobsPicksAndScansComeBackNewestFirst) {
   ASSERT_GT(scan, 0) << error;
   auto row = bolt(job, 1);
   row.scan = scan;
-  ASSERT_GT(h->add_pick(row, error), 0) << error;
+  int64_t first = h->add_pick(row, error);
+  ASSERT_GT(first, 0) << error;
   PickRow skipped;
   skipped.job = job;
   skipped.cls = "nut";
@@ -96,6 +97,10 @@ TEST(History, JobsPicksAndScansComeBackNewestFirst) {
   EXPECT_EQ(j["picks"][1]["scan"], scan);
   EXPECT_EQ(j["picks"][1]["image"], true);
   EXPECT_EQ(read_all(h->scan_path(scan)).size(), 4u);
+  // One row by its id (the bus's picks topic) is the query's row, field for field.
+  EXPECT_EQ(h->pick(first, error), j["picks"][1]);
+  EXPECT_TRUE(h->pick(first + 100, error).is_null());
+  EXPECT_TRUE(error.empty()) << error;
 
   // Filters: another job's rows and a future --since leave nothing.
   EXPECT_EQ(h->query({"", job + 1, 10}, error)["picks"].size(), 0u);

@@ -74,6 +74,7 @@ class Broker {
     std::ofstream(dir_ / "acl") << "user arm1\ntopic readwrite rbx1/arm1/#\ntopic readwrite homeassistant/#\n"
                                    "user viewer\ntopic read rbx1/#\ntopic read homeassistant/#\n"
                                    "user controller\ntopic read rbx1/#\ntopic write rbx1/+/cmd\n"
+                                   "topic write rbx1/+/recipe/set\ntopic write rbx1/+/recipe/sort\n"
                                    "topic readwrite homeassistant/status\ntopic read homeassistant/#\n";
     std::ofstream conf(dir_ / "mosquitto.conf");
     // As root, mosquitto would drop to user "mosquitto", who cannot read this folder: stay who we are.
@@ -237,7 +238,8 @@ class Client {
   std::vector<Message> messages_;
 };
 
-// Stands in for Machine::handle: status at once, estop at once, home a 300 ms job; counts what ran.
+// Stands in for Machine::handle: status at once, estop at once, home a 300 ms job; counts what ran and keeps the
+// last request of each command.
 class FakeArm {
  public:
   ~FakeArm() {
@@ -247,6 +249,7 @@ class FakeArm {
     return [this](const daemon::Request& r, std::shared_ptr<daemon::Reply> reply) {
       std::lock_guard lock(mu_);
       ++runs_[daemon::command_name(r.command)];
+      last_[daemon::command_name(r.command)] = r;
       if (r.command == daemon::Command::Home) {
         jobs_.emplace_back([reply] {
           std::this_thread::sleep_for(300ms);
@@ -262,10 +265,15 @@ class FakeArm {
     std::lock_guard lock(mu_);
     return runs_[cmd];
   }
+  daemon::Request last(const std::string& cmd) {
+    std::lock_guard lock(mu_);
+    return last_[cmd];
+  }
 
  private:
   std::mutex mu_;
   std::map<std::string, int> runs_;
+  std::map<std::string, daemon::Request> last_;
   std::vector<std::thread> jobs_;
 };
 
@@ -301,8 +309,8 @@ struct MqttCell : ::testing::Test {
   FakeArm arm;
   daemon::Bus bus;
   std::unique_ptr<mqtt::MqttInterface> iface;
-  void start(mqtt::MqttConfig c) {
-    iface = std::make_unique<mqtt::MqttInterface>(c, "arm1", bus, arm.handler());
+  void start(mqtt::MqttConfig c, const std::string& state_dir = "") {
+    iface = std::make_unique<mqtt::MqttInterface>(c, "arm1", bus, arm.handler(), state_dir);
     std::string error;
     ASSERT_EQ(iface->start(error), 0) << error;
     ASSERT_TRUE(eventually([&] { return iface->connected(); })) << "the interface never connected";
@@ -450,15 +458,20 @@ TEST_F(MqttCell, StateRetainedOnChangeAtMostStateRate) {
   bus.publish(daemon::Topic::Status, {{"ready", true}, {"job", "pick"}, {"joints_deg", {99, 0, 0, 0, 0, 0}}});
   std::this_thread::sleep_for(500ms);
   EXPECT_EQ(c.count("rbx1/arm1/state"), 0u);
-  // Events, scans and finished picks go to their topics; a late subscriber gets the retained state at once.
-  bus.publish(daemon::Topic::Events, {{"req", 5}, {"cmd", "pick"}, {"event", "grasp"}});
-  bus.publish(daemon::Topic::Events, {{"req", 5}, {"cmd", "pick"}, {"final", true}, {"result", {{"placed", true}}}});
+  // Events, scans and the history's pick rows go to their topics (the pick message is the row, nothing added); a
+  // late subscriber gets the retained state at once.
+  bus.publish(daemon::Topic::Events, {{"req", 5}, {"cmd", "sort"}, {"event", "chosen"}});
   bus.publish(daemon::Topic::Scans, {{"detections", {{"objects", json::array()}}}});
+  json row{{"id", 3}, {"job", 1}, {"ts", "2026-12-02T09:00:00.000Z"}, {"class", "bolt"}, {"match_score", 0.93},
+           {"grip_opening_cm", 1.2}, {"grip_angle_deg", 30.0}, {"place", "tray"}, {"phases_ms", {{"move", 8200}}},
+           {"cycle_ms", 9100.5}, {"outcome", "picked"}, {"reason", ""}, {"attempt", 1}, {"scan", 4}, {"image", true}};
+  bus.publish(daemon::Topic::Picks, row);
   EXPECT_TRUE(c.wait_topic("rbx1/arm1/event"));
   EXPECT_TRUE(c.wait_topic("rbx1/arm1/scan"));
   auto pick = c.wait_topic("rbx1/arm1/pick");
   ASSERT_TRUE(pick);
-  EXPECT_EQ(json::parse(pick->payload)["result"]["placed"], true);
+  EXPECT_EQ(json::parse(pick->payload), row);
+  EXPECT_EQ(c.count("rbx1/arm1/pick"), 1u);
   Client late(broker.port(), "viewer", "viewer-secret", "late");
   ASSERT_EQ(late.connack(), 0);
   late.subscribe("rbx1/arm1/state");
@@ -518,11 +531,109 @@ TEST_F(MqttCell, HomeAssistantDiscoveryRetainedAndRepublished) {
   Client ha(broker.port(), "controller", "controller-secret", "homeassistant");
   ASSERT_EQ(ha.connack(), 0);
   ha.subscribe("homeassistant/#");
-  ASSERT_TRUE(eventually([&] { return ha.messages().size() >= 7; }));
+  ASSERT_TRUE(eventually([&] { return ha.messages().size() >= 8; }));  // no recipes: no select, no Sort
   for (const auto& m : ha.messages()) EXPECT_TRUE(m.retain) << m.topic;
   ha.clear();
   ha.publish("homeassistant/status", "online");
   ASSERT_TRUE(eventually([&] { return ha.count("homeassistant/button/arm1/stop/config") == 1; }));
+}
+
+// The recipe select: its options are recipes.json's names (republished when the file changes); choosing only
+// remembers (nothing runs); Sort runs a sort with the chosen recipe; after a restart the broker's retained choice
+// is taken back.
+TEST_F(MqttCell, HomeAssistantRecipeSelectChoosesAndSortStartsIt) {
+  fs::path state = broker.dir() / "state";
+  fs::create_directories(state);
+  auto save_recipes = [&](const json& recipes) {  // as RecipeBook::save does: a new file renamed over the old
+    std::ofstream(state / "recipes.json.tmp") << recipes.dump();
+    fs::rename(state / "recipes.json.tmp", state / "recipes.json");
+  };
+  save_recipes({{"bolts", {{"bolt", "tray"}}}, {"mixed", {{"*", "bin"}, {"unknown", "bin"}}}});
+  auto cfg = arm_config(broker);
+  cfg.homeassistant = true;
+  start(cfg, state.string());
+  Client ha(broker.port(), "controller", "controller-secret", "homeassistant");
+  ASSERT_EQ(ha.connack(), 0);
+  ha.subscribe("homeassistant/#");
+  ha.subscribe("rbx1/arm1/#");
+  const std::string select_topic = "homeassistant/select/arm1/recipe/config";
+  auto select = ha.wait_topic(select_topic);
+  ASSERT_TRUE(select);
+  EXPECT_TRUE(select->retain);
+  json device{{"identifiers", {"rbx1_arm1"}}, {"name", "RBX1 arm1"}, {"manufacturer", "RBX1 project"},
+              {"model", "RBX1 arm (rbx1d)"}};
+  json common{{"device", device}, {"availability_topic", "rbx1/arm1/status"}, {"payload_available", "online"},
+              {"payload_not_available", "offline"}};
+  json want_select = common;
+  want_select.update({{"name", "Recipe (chooses only; Sort starts it)"}, {"unique_id", "rbx1_arm1_recipe"},
+                      {"object_id", "rbx1_arm1_recipe"}, {"icon", "mdi:clipboard-list"},
+                      {"command_topic", "rbx1/arm1/recipe/set"}, {"state_topic", "rbx1/arm1/recipe"},
+                      {"options", {"bolts", "mixed"}}, {"qos", 1}});
+  EXPECT_EQ(json::parse(select->payload), want_select);
+  auto sort_button = ha.wait_topic("homeassistant/button/arm1/sort/config");
+  ASSERT_TRUE(sort_button);
+  json want_sort = common;
+  want_sort.update({{"name", "Sort (the chosen recipe)"}, {"unique_id", "rbx1_arm1_sort"},
+                    {"object_id", "rbx1_arm1_sort"}, {"icon", "mdi:sort"}, {"command_topic", "rbx1/arm1/recipe/sort"},
+                    {"payload_press", "PRESS"}, {"qos", 1}});
+  EXPECT_EQ(json::parse(sort_button->payload), want_sort);
+
+  // A recipe saved: the select's options follow recipes.json's names.
+  save_recipes({{"bolts", {{"bolt", "tray"}}}, {"mixed", {{"*", "bin"}}}, {"nuts", {{"nut", "bin"}}}});
+  auto republished = ha.wait([&](const Message& m) {
+    return m.topic == select_topic && m.payload.find("nuts") != std::string::npos;
+  });
+  ASSERT_TRUE(republished) << "the select was not republished after recipes.json changed";
+  json names = json::array();
+  std::ifstream file(state / "recipes.json");
+  json saved = json::parse(file);
+  for (const auto& [name, recipe] : saved.items()) names.push_back(name);
+  EXPECT_EQ(json::parse(republished->payload)["options"], names);
+
+  // Sort with nothing chosen: refused, nothing runs.
+  ha.publish("rbx1/arm1/recipe/sort", "PRESS");
+  auto refused = ha.wait_topic("rbx1/arm1/cmd/response");
+  ASSERT_TRUE(refused);
+  EXPECT_EQ(json::parse(refused->payload)["error"]["code"], "unknown_recipe");
+  // Choosing moves nothing: the choice is shown (retained), no request runs.
+  auto on_recipe = [](const Message& m) { return m.topic == "rbx1/arm1/recipe"; };
+  size_t at = 0;
+  ha.publish("rbx1/arm1/recipe/set", "nuts");
+  auto chosen = ha.wait(on_recipe, 5s, &at);
+  ASSERT_TRUE(chosen);
+  EXPECT_EQ(chosen->payload, "nuts");
+  ha.publish("rbx1/arm1/recipe/set", "no-such-recipe");  // refused: the select shows the choice it had
+  auto kept = ha.wait(on_recipe, 5s, &at);
+  ASSERT_TRUE(kept);
+  EXPECT_EQ(kept->payload, "nuts");
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(arm.runs("sort"), 0);
+  // Sort starts a sort with the chosen recipe, through the same rules as a request on cmd.
+  ha.clear();
+  ha.publish("rbx1/arm1/recipe/sort", "PRESS");
+  auto started = ha.wait_topic("rbx1/arm1/cmd/response");
+  ASSERT_TRUE(started);
+  EXPECT_EQ(json::parse(started->payload)["result"]["cmd"], "sort");
+  EXPECT_EQ(arm.runs("sort"), 1);
+  EXPECT_EQ(arm.last("sort").recipe, "nuts");
+
+  // A restart: the choice retained on the broker is taken back; Sort runs it again.
+  iface->stop();
+  start(cfg, state.string());
+  ha.clear();
+  ha.publish("rbx1/arm1/recipe/sort", "PRESS");
+  ASSERT_TRUE(ha.wait_topic("rbx1/arm1/cmd/response"));
+  EXPECT_EQ(arm.runs("sort"), 2);
+  EXPECT_EQ(arm.last("sort").recipe, "nuts");
+
+  // The chosen recipe gone from recipes.json: nothing is chosen (its retained choice removed); no recipe left:
+  // the select and the Sort button are removed (empty retained configs).
+  ha.clear();
+  save_recipes({{"bolts", {{"bolt", "tray"}}}});
+  ASSERT_TRUE(ha.wait([](const Message& m) { return m.topic == "rbx1/arm1/recipe" && m.payload.empty(); }));
+  save_recipes(json::object());
+  ASSERT_TRUE(ha.wait([&](const Message& m) { return m.topic == select_topic && m.payload.empty(); }));
+  ASSERT_TRUE(ha.wait([](const Message& m) { return m.topic == "homeassistant/button/arm1/sort/config" && m.payload.empty(); }));
 }
 
 TEST(MqttTls, ConnectsWithTheTestCa) {

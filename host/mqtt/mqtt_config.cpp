@@ -53,6 +53,12 @@ void parse_mqtt_config(config::Section s, const std::string& arm_id, MqttConfig&
   s.reject_unknown();
 }
 
+int broker_keepalive_s(int keepalive_s) {
+  int k = keepalive_s;
+  while (k > 5 && (3 * k) / 2 + kBrokerKeepaliveScanS + 1 > 1.5 * keepalive_s) --k;
+  return k;
+}
+
 bool read_password(const MqttConfig& c, std::string& password, std::string& error) {
   password.clear();
   if (c.password_file.empty()) return true;

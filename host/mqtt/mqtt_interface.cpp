@@ -1,12 +1,16 @@
 // mqtt_interface.cpp - libmosquitto (MQTT 5) under the daemon: status and will, state from the bus at most
-// state_rate_hz, events and scans dropped rather than queued without bound, commands through submit_line().
+// state_rate_hz, events, scans and pick rows dropped rather than queued without bound, commands through
+// submit_line(), Home Assistant's recipe select and Sort button.
 #include "mqtt_interface.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <ctime>
 #include <cstdlib>
-#include <cstring>
+#include <map>
+#include <string_view>
+
+#include <sys/stat.h>
 
 #include <mosquitto.h>
 #include <mqtt_protocol.h>
@@ -15,6 +19,7 @@
 #include "command_decode.hpp"
 #include "command_table.hpp"
 #include "ha_discovery.hpp"
+#include "recipes.hpp"
 
 namespace rbx1::mqtt {
 
@@ -31,8 +36,10 @@ double wall_s() {
 std::once_flag g_lib_once;
 }  // namespace
 
-MqttInterface::MqttInterface(MqttConfig config, std::string arm_id, daemon::Bus& bus, daemon::Handler handler)
-    : config_(std::move(config)), arm_id_(std::move(arm_id)), bus_(bus), handler_(std::move(handler)), state_(arm_id_) {}
+MqttInterface::MqttInterface(MqttConfig config, std::string arm_id, daemon::Bus& bus, daemon::Handler handler,
+                             std::string state_dir)
+    : config_(std::move(config)), arm_id_(std::move(arm_id)), bus_(bus), handler_(std::move(handler)),
+      state_(arm_id_), state_dir_(std::move(state_dir)) {}
 
 MqttInterface::~MqttInterface() {
   stop();
@@ -69,8 +76,8 @@ int MqttInterface::start(std::string& error) {
   mosquitto_disconnect_v5_callback_set(mosq_, &MqttInterface::on_disconnect);
   mosquitto_message_v5_callback_set(mosq_, &MqttInterface::on_message);
   mosquitto_publish_v5_callback_set(mosq_, &MqttInterface::on_publish);
-  sub_ = bus_.subscribe(unsigned(daemon::Topic::Status) | unsigned(daemon::Topic::Events) |
-                        unsigned(daemon::Topic::Scans), 1024);
+  sub_ = bus_.subscribe(daemon::kAllTopics, 1024);
+  watch_recipes();  // the select's options are there for the first connect
   net_thread_ = std::thread([this] { network(); });
   bus_thread_ = std::thread([this] { bus_loop(); });
   return 0;
@@ -97,7 +104,8 @@ MqttCounters MqttInterface::counters() const {
 // ---- the network thread ---------------------------------------------------------------------------------------
 
 void MqttInterface::network() {
-  int rc = mosquitto_connect_bind_v5(mosq_, config_.host.c_str(), config_.port, config_.keepalive_s, nullptr, nullptr);
+  int rc = mosquitto_connect_bind_v5(mosq_, config_.host.c_str(), config_.port, broker_keepalive_s(config_.keepalive_s),
+                                     nullptr, nullptr);
   double delay_s = 1;
   for (;;) {
     if (stopping_) return;
@@ -130,12 +138,19 @@ void MqttInterface::connected_now() {
   waiting_ = 0;  // what libmosquitto still holds from before is resent by it, not counted again
   connected_ = true;
   ++connects_;
-  spdlog::info("mqtt: connected to {}:{} as {} (prefix {})", config_.host, config_.port, config_.client_id,
-               config_.prefix);
+  spdlog::info("mqtt: connected to {}:{} as {} (prefix {}, keepalive {} s sent for keepalive_s {})", config_.host,
+               config_.port, config_.client_id, config_.prefix, broker_keepalive_s(config_.keepalive_s),
+               config_.keepalive_s);
   std::string cmd = topic("cmd");
   // Retained commands are never sent to us at subscription (and refused if they come anyway).
   mosquitto_subscribe_v5(mosq_, nullptr, cmd.c_str(), 1, MQTT_SUB_OPT_SEND_RETAIN_NEVER, nullptr);
-  if (config_.homeassistant) mosquitto_subscribe_v5(mosq_, nullptr, kHaStatusTopic, 1, 0, nullptr);
+  if (config_.homeassistant) {
+    mosquitto_subscribe_v5(mosq_, nullptr, kHaStatusTopic, 1, 0, nullptr);
+    // The choice retained before a restart comes back once (restored if still a saved recipe); presses never do.
+    for (const char* leaf : {kRecipeLeaf, kRecipeSetLeaf})
+      mosquitto_subscribe_v5(mosq_, nullptr, topic(leaf).c_str(), 1, 0, nullptr);
+    mosquitto_subscribe_v5(mosq_, nullptr, topic(kSortLeaf).c_str(), 1, MQTT_SUB_OPT_SEND_RETAIN_NEVER, nullptr);
+  }
   publish(topic("status"), "online", 1, true, false);
   {
     std::lock_guard lock(state_mu_);
@@ -159,18 +174,24 @@ void MqttInterface::on_publish(mosquitto*, void* self, int, int, const mosquitto
 
 void MqttInterface::on_message(mosquitto*, void* self, const mosquitto_message* msg, const mosquitto_property* props) {
   auto* m = static_cast<MqttInterface*>(self);
-  if (m->topic("cmd") == msg->topic) {
+  std::string_view t(msg->topic);
+  std::string_view p(static_cast<const char*>(msg->payload), size_t(msg->payloadlen));
+  if (t == m->topic("cmd")) {
     m->command(msg, props);
-  } else if (std::strcmp(msg->topic, kHaStatusTopic) == 0) {
-    std::string_view p(static_cast<const char*>(msg->payload), size_t(msg->payloadlen));
+  } else if (t == kHaStatusTopic) {
     if (p == "online") m->publish_discovery();  // Home Assistant restarted: it forgot the non-retained ones
+  } else if (t == m->topic(kRecipeSetLeaf)) {
+    m->choose_recipe(std::string(p), false);
+  } else if (t == m->topic(kRecipeLeaf)) {
+    m->choose_recipe(std::string(p), true);
+  } else if (t == m->topic(kSortLeaf)) {
+    m->sort_pressed(msg);
   }
 }
 
 // ---- commands ------------------------------------------------------------------------------------------------
 
 void MqttInterface::command(const mosquitto_message* msg, const mosquitto_property* props) {
-  ++commands_;
   Destination to{topic("cmd/response"), "", nullptr};
   char* rt = nullptr;
   if (mosquitto_property_read_string(props, MQTT_PROP_RESPONSE_TOPIC, &rt, false)) {
@@ -183,10 +204,14 @@ void MqttInterface::command(const mosquitto_message* msg, const mosquitto_proper
     to.correlation.assign(static_cast<const char*>(cd), cd_len);
     std::free(cd);
   }
+  run({static_cast<const char*>(msg->payload), size_t(msg->payloadlen)}, msg->retain, std::move(to));
+}
+
+void MqttInterface::run(std::string_view payload, bool retained, Destination to) {
+  ++commands_;
   Incoming in;
   daemon::Error err;
-  if (!decode_command({static_cast<const char*>(msg->payload), size_t(msg->payloadlen)}, in, err))
-    return refuse(to, err.code, err.message);
+  if (!decode_command(payload, in, err)) return refuse(to, err.code, err.message);
   to.id = in.id;
   // Who may call what comes from the command table: a stop is never stale and never a repeat (stopping again is
   // always safe, and it must not wait); socket-only commands and the socket's own subscribe are refused.
@@ -195,12 +220,12 @@ void MqttInterface::command(const mosquitto_message* msg, const mosquitto_proper
   std::string key;
   if (!stop) {
     bool just_connected = steady_s() - connected_at_s_ < kReconnectGraceS;
-    if (auto why = stale_reason(in, msg->retain, wall_s(), config_.max_age_s, just_connected); !why.empty())
+    if (auto why = stale_reason(in, retained, wall_s(), config_.max_age_s, just_connected); !why.empty())
       return refuse(to, "stale", why);
     if (spec && spec->access == daemon::Access::Local)
       return refuse(to, "not_allowed", in.cmd + " is not taken over MQTT (the control socket or systemctl stop rbx1d)");
     if (spec && spec->command == daemon::Command::Subscribe)
-      return refuse(to, "not_allowed", "the bus is already on " + config_.prefix + "/state, /event and /scan");
+      return refuse(to, "not_allowed", "the bus is already on " + config_.prefix + "/state, /event, /scan and /pick");
     if (!in.id.is_null()) {
       key = in.id.dump();
       std::string first;
@@ -265,7 +290,77 @@ void MqttInterface::publish_state() {
 }
 
 void MqttInterface::publish_discovery() {
-  for (const auto& [t, payload] : discovery_configs(arm_id_, config_.prefix)) publish(t, payload, 1, true, false);
+  if (!config_.homeassistant) return;
+  std::lock_guard lock(recipes_mu_);
+  for (const auto& [t, payload] : discovery_configs(arm_id_, config_.prefix, recipe_names_))
+    publish(t, payload, 1, true, false);
+  if (!chosen_recipe_.empty()) publish(topic(kRecipeLeaf), chosen_recipe_, 1, true, false);
+}
+
+// ---- Home Assistant's recipes --------------------------------------------------------------------------------
+
+void MqttInterface::watch_recipes() {
+  if (!config_.homeassistant || state_dir_.empty()) return;
+  daemon::RecipeBook book(state_dir_);
+  struct stat st {};
+  std::string stamp = ::stat(book.path().c_str(), &st) != 0 ? "none"
+                      : std::to_string(st.st_ino) + "/" + std::to_string(st.st_size) + "/" +
+                            std::to_string(st.st_mtim.tv_sec) + "." + std::to_string(st.st_mtim.tv_nsec);
+  std::vector<std::string> names;
+  {
+    std::lock_guard lock(recipes_mu_);
+    if (stamp == recipes_stamp_) return;
+    recipes_stamp_ = stamp;
+    std::map<std::string, daemon::Recipe> recipes;
+    std::string error;
+    if (!book.load(recipes, error)) {
+      spdlog::warn("mqtt: the recipe select keeps its options: {}", error);
+      return;
+    }
+    for (const auto& [name, recipe] : recipes) names.push_back(name);
+    if (names == recipe_names_) return;
+    recipe_names_ = names;
+    if (!chosen_recipe_.empty() && !std::count(names.begin(), names.end(), chosen_recipe_)) {
+      spdlog::info("mqtt: the chosen recipe {} is no longer saved: nothing is chosen", chosen_recipe_);
+      chosen_recipe_.clear();
+      publish(topic(kRecipeLeaf), "", 1, true, false);  // removes the retained choice
+    }
+  }
+  if (connected_) publish_discovery();
+}
+
+void MqttInterface::choose_recipe(const std::string& name, bool restoring) {
+  watch_recipes();  // one saved a moment ago is offered already
+  std::lock_guard lock(recipes_mu_);
+  bool saved = std::count(recipe_names_.begin(), recipe_names_.end(), name) > 0;
+  if (restoring) {  // the broker's retained choice (from before a restart), or our own publication coming back
+    if (chosen_recipe_.empty() && saved) chosen_recipe_ = name;
+    return;
+  }
+  if (!saved) {
+    spdlog::warn("mqtt: {}: no recipe \"{}\" is saved; the choice stays \"{}\"", topic(kRecipeSetLeaf), name,
+                 chosen_recipe_);
+  } else {
+    chosen_recipe_ = name;
+    spdlog::info("mqtt: recipe {} chosen (Sort starts it)", name);
+  }
+  // The select shows what is chosen (after a refused name: the choice it had).
+  publish(topic(kRecipeLeaf), chosen_recipe_, 1, true, false);
+}
+
+void MqttInterface::sort_pressed(const mosquitto_message* msg) {
+  std::string name;
+  {
+    std::lock_guard lock(recipes_mu_);
+    name = chosen_recipe_;
+  }
+  Destination to{topic("cmd/response"), "", nullptr};
+  if (name.empty()) {
+    ++commands_;
+    return refuse(to, "unknown_recipe", "no recipe is chosen: choose one in the recipe select, then press Sort");
+  }
+  // The same rules as a request on cmd: a retained press, or one right after a reconnect, is stale.
+  run(nlohmann::json{{"cmd", "sort"}, {"recipe", name}}.dump(), msg->retain, std::move(to));
 }
 
 // ---- the bus subscriber --------------------------------------------------------------------------------------
@@ -273,7 +368,7 @@ void MqttInterface::publish_discovery() {
 void MqttInterface::bus_loop() {
   using clock = std::chrono::steady_clock;
   const auto period = std::chrono::duration_cast<clock::duration>(std::chrono::duration<double>(1 / config_.state_rate_hz));
-  auto next_state = clock::now();
+  auto next_state = clock::now(), next_recipes = clock::now() + std::chrono::seconds(1);
   if (auto s = bus_.last_status(); s.is_object()) {
     std::lock_guard lock(state_mu_);
     state_.on_status(s);
@@ -289,6 +384,10 @@ void MqttInterface::bus_loop() {
             std::chrono::duration_cast<std::chrono::milliseconds>(next_state - clock::now()).count(), 0, 200));
     }
     bool got = sub_->next(m, timeout_ms);
+    if (clock::now() >= next_recipes) {
+      watch_recipes();
+      next_recipes = clock::now() + std::chrono::seconds(1);
+    }
     std::lock_guard lock(state_mu_);
     if (got) {
       const auto& body = *m.body;
@@ -296,10 +395,11 @@ void MqttInterface::bus_loop() {
         state_.on_status(body);
       } else if (m.topic == daemon::Topic::Events) {
         publish(topic("event"), dump(body), 0, false, true);
-        if (auto pick = state_.on_event(body, std::time(nullptr)); !pick.is_null())
-          publish(topic("pick"), dump(pick), 1, false, true);
+        state_.on_event(body, std::time(nullptr));
       } else if (m.topic == daemon::Topic::Scans) {
         publish(topic("scan"), dump(body), 0, false, true);
+      } else if (m.topic == daemon::Topic::Picks) {
+        publish(topic("pick"), dump(state_.on_pick_row(body, std::time(nullptr))), 1, false, true);
       }
     }
     // A change goes out at once unless the last went less than 1/state_rate_hz ago; then at the end of that time.

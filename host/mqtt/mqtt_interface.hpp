@@ -1,5 +1,5 @@
 // mqtt_interface.hpp - the daemon on an MQTT broker: a subscriber of the bus (status -> retained state, events,
-// scans, picks) and a client of the request layer (requests on <prefix>/cmd; the final reply on the MQTT 5 response
+// scans, the history's pick rows) and a client of the request layer (requests on <prefix>/cmd; the final reply on the MQTT 5 response
 // topic with its correlation data, else on <prefix>/cmd/response with the request's id). libmosquitto's network
 // thread does all the I/O: nothing here waits on the broker, and what cannot be sent is dropped and counted.
 #pragma once
@@ -9,6 +9,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "bus.hpp"
 #include "mqtt_config.hpp"
@@ -26,14 +27,16 @@ struct MqttCounters {
   uint64_t connects = 0;    // successful CONNACKs (the first one and every reconnect)
   uint64_t published = 0;   // messages handed to libmosquitto
   uint64_t dropped = 0;     // events/scans not sent: disconnected, or max_queued messages already waiting
-  uint64_t commands = 0;    // payloads received on cmd
+  uint64_t commands = 0;    // payloads received on cmd (and presses of Home Assistant's Sort button)
   uint64_t refused = 0;     // of those, refused before the handler (envelope errors, stale, retained, repeats)
 };
 
 class MqttInterface {
  public:
-  // handler: the daemon's request handler (Machine::handle), exactly as the socket calls it.
-  MqttInterface(MqttConfig config, std::string arm_id, daemon::Bus& bus, daemon::Handler handler);
+  // handler: the daemon's request handler (Machine::handle), exactly as the socket calls it. state_dir: the folder
+  // of recipes.json, whose names Home Assistant's select offers ("" = no select).
+  MqttInterface(MqttConfig config, std::string arm_id, daemon::Bus& bus, daemon::Handler handler,
+                std::string state_dir = "");
   ~MqttInterface();
   // Reads the password file and starts the threads; connecting (and reconnecting, with backoff) is theirs. An
   // error here is the config's (password file, TLS files), naming the key.
@@ -60,6 +63,8 @@ class MqttInterface {
   void bus_loop();  // the bus subscriber: state (rate-limited), event, scan, pick
   void connected_now();
   void command(const mosquitto_message* msg, const mosquitto_property* props);
+  // One request's payload through the envelope rules (stale, retained, at most once) to the handler.
+  void run(std::string_view payload, bool retained, Destination to);
   void reply(const Destination& to, const std::string& final_line);
   void refuse(const Destination& to, const std::string& code, const std::string& message);
   // droppable: an event or scan, dropped (counted) when disconnected or when max_queued are waiting.
@@ -67,6 +72,11 @@ class MqttInterface {
                const mosquitto_property* props = nullptr);
   void publish_state();  // state_mu_ held
   void publish_discovery();
+  // Home Assistant's recipes: the select's names follow recipes.json (checked each second, republished on change);
+  // choosing only remembers the name (retained on <prefix>/recipe); the Sort button runs a sort with it.
+  void watch_recipes();
+  void choose_recipe(const std::string& name, bool restoring);
+  void sort_pressed(const mosquitto_message* msg);
 
   MqttConfig config_;
   std::string arm_id_;
@@ -84,6 +94,11 @@ class MqttInterface {
   ReplayCache replays_;
   std::mutex state_mu_;  // guards state_
   StateView state_;
+  std::string state_dir_;
+  std::mutex recipes_mu_;  // guards the three below
+  std::vector<std::string> recipe_names_;
+  std::string chosen_recipe_;  // "" until chosen (or restored from the broker's retained choice)
+  std::string recipes_stamp_;  // recipes.json's inode, size and mtime when last read
 };
 
 }  // namespace rbx1::mqtt

@@ -36,6 +36,16 @@ TEST(MqttConfig, DefaultsFollowArmId) {
   EXPECT_EQ(tls.port, 8883);
 }
 
+// The keepalive sent to the broker: within 1.5 x keepalive_s despite mosquitto 2.0's 6 s check, where that can be.
+TEST(MqttConfig, BrokerKeepaliveFitsTheBrokersCheck) {
+  EXPECT_EQ(mqtt::broker_keepalive_s(5), 5);    // cannot: 5 is libmosquitto's least
+  EXPECT_EQ(mqtt::broker_keepalive_s(9), 5);
+  EXPECT_EQ(mqtt::broker_keepalive_s(10), 5);   // 7 + 7 <= 15
+  EXPECT_EQ(mqtt::broker_keepalive_s(20), 15);  // 22 + 7 <= 30
+  EXPECT_EQ(mqtt::broker_keepalive_s(60), 55);
+  EXPECT_EQ(mqtt::broker_keepalive_s(3600), 3595);
+}
+
 TEST(MqttConfig, ErrorsNameTheirKey) {
   struct Case {
     const char* text;
@@ -190,12 +200,20 @@ TEST(StateView, ModeProgressAndPicks) {
   EXPECT_FALSE(v.changed());
   v.on_status({{"ready", true}, {"job", nullptr}, {"firmware", {{"state", "IDLE"}}}, {"seq", 2}, {"topic", "status"}});
   EXPECT_FALSE(v.changed());  // only seq differs
-  EXPECT_TRUE(v.on_event({{"req", 3}, {"cmd", "pick"}, {"event", "grasp"}}, 0).is_null());
+  v.on_event({{"req", 3}, {"cmd", "pick"}, {"event", "grasp"}}, 0);
   EXPECT_EQ(v.document()["progress"]["event"], "grasp");
-  auto pick = v.on_event({{"req", 3}, {"cmd", "pick"}, {"final", true}, {"result", {{"placed", true}}}}, 0);
-  EXPECT_EQ(pick["result"]["placed"], true);
-  EXPECT_EQ(v.document()["picks_today"], 1);
+  v.on_event({{"req", 3}, {"cmd", "pick"}, {"final", true}, {"result", {{"placed", true}}}}, 0);
+  EXPECT_EQ(v.document()["picks_today"], 1);  // a single pick (not in the history)
   EXPECT_TRUE(v.document()["progress"].is_null());
+  // A sort's history rows: the pick message is the row itself; only "picked" counts.
+  json row{{"id", 7}, {"job", 2}, {"class", "bolt"}, {"outcome", "picked"}, {"reason", ""}};
+  json bus_row = row;
+  bus_row["topic"] = "picks";
+  bus_row["seq"] = 41;
+  EXPECT_EQ(v.on_pick_row(bus_row, 0), row);
+  bus_row["outcome"] = "failed";
+  v.on_pick_row(bus_row, 0);
+  EXPECT_EQ(v.document()["picks_today"], 2);
   v.on_status({{"ready", false}, {"job", nullptr}, {"firmware", {{"state", "FAULT"}, {"faults", {"ESTOP_COMMAND"}}}}});
   EXPECT_EQ(v.document()["mode"], "estop");
   v.on_status({{"ready", false}, {"job", nullptr}, {"firmware", {{"state", "FAULT"}, {"faults", {"LIMIT_HIT"}}}}});
@@ -203,8 +221,8 @@ TEST(StateView, ModeProgressAndPicks) {
 }
 
 TEST(HaDiscovery, OneDeviceWithAvailability) {
-  auto configs = mqtt::discovery_configs("arm 1", "rbx1/arm 1");
-  ASSERT_EQ(configs.size(), 7u);
+  auto configs = mqtt::discovery_configs("arm 1", "rbx1/arm 1", {"bolts"});
+  ASSERT_EQ(configs.size(), 10u);
   std::set<std::string> ids;
   for (const auto& [topic, payload] : configs) {
     EXPECT_EQ(topic.rfind("homeassistant/", 0), 0u);
@@ -216,4 +234,33 @@ TEST(HaDiscovery, OneDeviceWithAvailability) {
   }
   EXPECT_EQ(ids.size(), configs.size());
   EXPECT_NE(configs[6].second.find(R"({\"cmd\":\"estop\"})"), std::string::npos);
+}
+
+// The recipes: a select that only chooses (its command topic is not cmd) and a Sort button that starts the chosen
+// one; both removed (empty retained configs) while no recipe is saved.
+TEST(HaDiscovery, RecipeSelectAndSortButton) {
+  json device{{"identifiers", {"rbx1_arm1"}}, {"name", "RBX1 arm1"}, {"manufacturer", "RBX1 project"},
+              {"model", "RBX1 arm (rbx1d)"}};
+  auto with = mqtt::discovery_configs("arm1", "rbx1/arm1", {"bolts", "mixed"});
+  ASSERT_EQ(with.size(), 10u);
+  EXPECT_EQ(with[8].first, "homeassistant/select/arm1/recipe/config");
+  EXPECT_EQ(json::parse(with[8].second),
+            (json{{"name", "Recipe (chooses only; Sort starts it)"}, {"unique_id", "rbx1_arm1_recipe"},
+                  {"object_id", "rbx1_arm1_recipe"}, {"device", device}, {"availability_topic", "rbx1/arm1/status"},
+                  {"payload_available", "online"}, {"payload_not_available", "offline"},
+                  {"icon", "mdi:clipboard-list"}, {"command_topic", "rbx1/arm1/recipe/set"},
+                  {"state_topic", "rbx1/arm1/recipe"}, {"options", {"bolts", "mixed"}}, {"qos", 1}}));
+  EXPECT_EQ(with[9].first, "homeassistant/button/arm1/sort/config");
+  EXPECT_EQ(json::parse(with[9].second),
+            (json{{"name", "Sort (the chosen recipe)"}, {"unique_id", "rbx1_arm1_sort"}, {"object_id", "rbx1_arm1_sort"},
+                  {"device", device}, {"availability_topic", "rbx1/arm1/status"}, {"payload_available", "online"},
+                  {"payload_not_available", "offline"}, {"icon", "mdi:sort"},
+                  {"command_topic", "rbx1/arm1/recipe/sort"}, {"payload_press", "PRESS"}, {"qos", 1}}));
+  EXPECT_EQ(json::parse(with[7].second)["payload_press"], R"({"cmd":"cancel"})");
+  auto without = mqtt::discovery_configs("arm1", "rbx1/arm1", {});
+  ASSERT_EQ(without.size(), 10u);
+  EXPECT_EQ(without[8].first, with[8].first);
+  EXPECT_EQ(without[8].second, "");
+  EXPECT_EQ(without[9].second, "");
+  EXPECT_EQ(without[0], with[0]);
 }

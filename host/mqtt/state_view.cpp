@@ -22,25 +22,32 @@ void StateView::on_status(const nlohmann::json& body) {
   for (const char* k : {"topic", "seq", "ts", "t_ms"}) status_.erase(k);
 }
 
-nlohmann::json StateView::on_event(const nlohmann::json& body, std::time_t now) {
-  bool final = body.value("final", false);
+void StateView::on_event(const nlohmann::json& body, std::time_t now) {
   nlohmann::json cmd = body.value("cmd", nlohmann::json());
-  if (!final) {
+  if (!body.value("final", false)) {
     progress_ = {{"req", body.value("req", nlohmann::json())}, {"cmd", cmd}, {"event", body.value("event", nlohmann::json())}};
-    return nullptr;
+    return;
   }
   progress_ = nullptr;
-  if (cmd != "pick") return nullptr;
+  // A single pick is not in the history (only sorts and clears are): its result is counted here.
+  if (cmd == "pick" && body.contains("result")) count_pick(now);
+}
+
+nlohmann::json StateView::on_pick_row(const nlohmann::json& body, std::time_t now) {
+  if (body.value("outcome", nlohmann::json()) == "picked") count_pick(now);
+  nlohmann::json row = body;
+  for (const char* k : {"topic", "seq"}) row.erase(k);
+  return row;
+}
+
+void StateView::count_pick(std::time_t now) {
   tm t{};
   localtime_r(&now, &t);
   if (t.tm_yday != day_) {
     day_ = t.tm_yday;
     picks_today_ = 0;
   }
-  if (body.contains("result")) ++picks_today_;
-  nlohmann::json pick = body;
-  for (const char* k : {"topic", "seq", "final"}) pick.erase(k);
-  return pick;
+  ++picks_today_;
 }
 
 nlohmann::json StateView::document() const {

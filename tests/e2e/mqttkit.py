@@ -37,8 +37,11 @@ class Broker:
             subprocess.run(["mosquitto_passwd", *(["-c"] if i == 0 else []), "-b", str(passwd), user, pw], check=True,
                            capture_output=True)
             (self.dir / f"{user}.pw").write_text(pw + "\n")
-        (self.dir / "acl").write_text("pattern readwrite rbx1/%u/#\n"
-                                      "user controller\ntopic read rbx1/#\ntopic write rbx1/+/cmd\n")
+        # As tools/cell/rbx1-cell.acl: the controller here is also Home Assistant (discovery, the recipe select).
+        (self.dir / "acl").write_text("pattern readwrite rbx1/%u/#\npattern readwrite homeassistant/+/%u/#\n"
+                                      "user controller\ntopic read rbx1/#\ntopic write rbx1/+/cmd\n"
+                                      "topic read homeassistant/#\ntopic write rbx1/+/recipe/set\n"
+                                      "topic write rbx1/+/recipe/sort\n")
         (self.dir / "mosquitto.conf").write_text(
             f"user {pwd.getpwuid(os.geteuid()).pw_name}\nallow_anonymous false\npassword_file {passwd}\n"
             f"acl_file {self.dir / 'acl'}\npersistence false\nlog_dest file {self.dir / 'mosquitto.log'}\n"
@@ -74,15 +77,15 @@ def mqtt_section(broker, arm, **extra):
 
 
 class Watcher:
-    """A controller client subscribed to rbx1/#: every message kept, in order."""
+    """A controller client subscribed to rbx1/# (and any other topics given): every message kept, in order."""
 
-    def __init__(self, broker, user="controller"):
+    def __init__(self, broker, user="controller", topics=("rbx1/#",)):
         self.messages = []
         self.lock = threading.RLock()  # wait()'s predicates call last()
         self.c = mqtt.Client(client_id=f"watch-{free_port()}", protocol=mqtt.MQTTv5)
         self.c.username_pw_set(user, broker.passwords[user])
         self.c.on_message = self._on_message
-        self.c.on_connect = lambda c, u, f, rc, p=None: c.subscribe("rbx1/#", qos=1)
+        self.c.on_connect = lambda c, u, f, rc, p=None: c.subscribe([(t, 1) for t in topics])
         self.c.reconnect_delay_set(0.2, 1)
         self.c.connect("127.0.0.1", broker.port, keepalive=10)
         self.c.loop_start()
