@@ -730,6 +730,39 @@ void Machine::job_clear_fault(Reply& reply) {
   reply.result({{"cleared", true}, {"firmware", status_json(st)}});
 }
 
+namespace {
+
+// Objects that resemble `name` but are not taken as it (issue 27: an untaught look-alike stays unknown): the
+// object whose best match is `name` below that entry's learnt threshold, or ambiguous with another taught
+// entry, and the object that matches another taught entry better. For the object_absent message.
+std::string look_alikes(const nlohmann::json& objects, const std::string& name) {
+  std::string out;
+  char line[160];
+  for (const auto& o : objects) {
+    const auto& id = o.value("identification", nlohmann::json());
+    if (!id.is_object()) continue;
+    const int index = o.value("index", 0);
+    const std::string best = id.value("best", nlohmann::json()).is_string() ? id["best"].get<std::string>() : "";
+    const std::string second = id.value("runner_up", nlohmann::json()).is_string() ? id["runner_up"].get<std::string>() : "";
+    const double score = id.value("best_score", 0.0), threshold = id.value("threshold", 0.0);
+    const std::string verdict = id.value("verdict", "");
+    if (best == name && verdict == "below_threshold")
+      std::snprintf(line, sizeof line, "#%d matches it %.2f, below its taught %.2f", index, score, threshold);
+    else if (best == name && verdict == "ambiguous")
+      std::snprintf(line, sizeof line, "#%d matches it %.2f, as well as \"%s\" %.2f", index, score, second.c_str(),
+                    id.value("runner_up_score", 0.0));
+    else if (second == name && o["label"].is_string())
+      std::snprintf(line, sizeof line, "#%d matches it %.2f, \"%s\" better %.2f", index,
+                    id.value("runner_up_score", 0.0), best.c_str(), score);
+    else
+      continue;
+    out += (out.empty() ? "" : "; ") + std::string(line);
+  }
+  return out;
+}
+
+}  // namespace
+
 void Machine::job_pick(Reply& reply, const std::string& name, const std::string& place) {
   if (!config_.arm.places.count(place)) {
     std::string known;
@@ -756,10 +789,12 @@ void Machine::job_pick(Reply& reply, const std::string& name, const std::string&
   }
   if (!best) {
     // Absent: back home, then report the error naming the object (the paper's rule).
-    reply.event("absent", {{"name", name}, {"seen", seen}});
+    const std::string alike = look_alikes(detections["objects"], name);
+    reply.event("absent", {{"name", name}, {"seen", seen}, {"look_alikes", alike}});
     if (!move_to(reply, "home", config_.arm.home)) return;
     reply.error("object_absent", "object \"" + name + "\" is not in the scene" +
-                                     (seen.empty() ? std::string(" (no known object seen)") : " (seen: " + seen + ")"));
+                                     (seen.empty() ? std::string(" (no known object seen)") : " (seen: " + seen + ")") +
+                                     (alike.empty() ? "" : "; not taken as it: " + alike));
     return;
   }
   reply.event("identified", {{"name", name}, {"index", (*best)["index"]}, {"match_score", (*best)["match_score"]},

@@ -12,11 +12,19 @@ namespace {
 // are laid out apart by more than a finger (the grip check keeps a finger's width to every neighbour).
 constexpr double kStillThereCm = 1.0;
 
+// The label, or the best match when it was not accepted (an object near its learnt threshold may fall under it
+// on the second look: it is still there, not gone).
+bool looks_like(const nlohmann::json& o, const std::string& name) {
+  if (o["label"].is_string()) return o["label"].get<std::string>() == name;
+  const auto& id = o.value("identification", nlohmann::json());
+  return id.is_object() && id.value("best", nlohmann::json()).is_string() && id["best"].get<std::string>() == name;
+}
+
 const nlohmann::json* still_there(const nlohmann::json& detections, const std::string& name, const nlohmann::json& c) {
   const nlohmann::json* best = nullptr;
   double best_d = kStillThereCm;
   for (const auto& o : detections["objects"]) {
-    if (!o["label"].is_string() || o["label"].get<std::string>() != name || !o["centroid_cm"].is_array()) continue;
+    if (!looks_like(o, name) || !o["centroid_cm"].is_array()) continue;
     double d = std::hypot(o["centroid_cm"][0].get<double>() - c[0].get<double>(),
                           o["centroid_cm"][1].get<double>() - c[1].get<double>());
     if (d <= best_d) {

@@ -12,6 +12,18 @@ namespace {
 // Rounds to a multiple of q (a power of ten), so the JSON prints short decimals.
 double round_to(double v, double q) { return std::round(v / q) / std::round(1 / q); }
 nlohmann::json pt(cv::Point2d p, double q) { return {round_to(p.x, q), round_to(p.y, q)}; }
+nlohmann::json opt_score(std::optional<double> v) { return v ? nlohmann::json(round_to(*v, 1e-4)) : nlohmann::json(nullptr); }
+nlohmann::json opt_name(const std::optional<std::string>& v) { return v ? nlohmann::json(*v) : nlohmann::json(nullptr); }
+
+// The match behind label/match_score (issue 27): null without a library.
+nlohmann::json identification_json(const Identity& id) {
+  if (id.verdict == Verdict::NoLibrary) return nullptr;
+  nlohmann::json margin = nullptr;
+  if (id.best_score && id.runner_up_score) margin = round_to(*id.best_score - *id.runner_up_score, 1e-4);
+  return {{"verdict", verdict_name(id.verdict)}, {"best", opt_name(id.best)}, {"best_score", opt_score(id.best_score)},
+          {"threshold", opt_score(id.threshold)}, {"runner_up", opt_name(id.runner_up)},
+          {"runner_up_score", opt_score(id.runner_up_score)}, {"margin", margin}};
+}
 
 }  // namespace
 
@@ -128,6 +140,22 @@ bool Vision::run(const cv::Mat& frame, Detection& det, cv::Mat& processed, std::
   return true;
 }
 
+LibraryEntry Vision::teach_entry(const Detection& det, size_t k, const std::string& name, bool mirror_ok,
+                                 SelfViews* views) const {
+  const DetectedObject& o = det.objects[k];
+  LibraryEntry e;
+  e.name = name;
+  e.mirror_ok = mirror_ok;
+  e.profile = det.profiles[k];
+  e.area_px = o.geometry.area_px;
+  e.elongation = o.pose.elongation;
+  if (double ppc = px_per_cm_at(o.geometry.centroid); ppc > 0) e.area_cm2 = o.geometry.area_px / (ppc * ppc);
+  SelfViews v = learn_threshold(o.geometry, e, det_.match, det_.pose, det_.grip.lines);
+  e.threshold = v.threshold;
+  if (views) *views = v;
+  return e;
+}
+
 bool Vision::process(const cv::Mat& frame, nlohmann::json& result, std::string& error) {
   Detection det;
   cv::Mat processed;
@@ -165,6 +193,7 @@ nlohmann::json Vision::to_json(const Detection& det) const {
                  {"feasible", o.grip.feasible},
                  {"reason", o.grip.feasible ? json(nullptr) : json(grip_reason_name(o.grip.reason))}};
     j["touching"] = o.touching;
+    j["identification"] = identification_json(o.identity);
     doc["objects"].push_back(j);
   }
   if (!det.warnings.empty()) doc["warnings"] = det.warnings;  // only when the method could not decide
@@ -181,6 +210,10 @@ std::string Vision::report(const Detection& det) const {
     out += line;
     if (has_library_) {
       if (o.identity.label) std::snprintf(line, sizeof line, "Identified as %s (match %.2f)\n", o.identity.label->c_str(), *o.identity.score);
+      else if (o.identity.best)
+        std::snprintf(line, sizeof line, "Identified as unknown (%s: nearest %s, match %.2f, its threshold %.2f)\n",
+                      verdict_name(o.identity.verdict), o.identity.best->c_str(), *o.identity.best_score,
+                      *o.identity.threshold);
       else std::snprintf(line, sizeof line, "Identified as unknown\n");
       out += line;
     }
