@@ -51,6 +51,7 @@ bench: host firmware
 	@tools/bench/crc-avr
 	@tools/bench/perception-speed
 	@tools/bench/perception-accuracy
+	@tools/bench/perception-twins
 	@tools/bench/perception-corpus
 	@tools/bench/daemon-latency
 	@tools/bench/bus

@@ -172,20 +172,14 @@ void add_teach(CLI::App& app, int& exit_code) {
       exit_code = fail("teach", s->image + ": needs exactly one object, found " + std::to_string(det.objects.size()));
       return;
     }
-    const v::DetectedObject& o = det.objects.front();
-    v::LibraryEntry e;
-    e.name = *name;
-    e.mirror_ok = *mirror_ok;
-    e.profile = det.profiles.front();
-    e.area_px = o.geometry.area_px;
-    e.elongation = o.pose.elongation;
-    if (double ppc = vis->px_per_cm_at(o.geometry.centroid); ppc > 0) e.area_cm2 = o.geometry.area_px / (ppc * ppc);
-    v::upsert(lib, e);
+    v::SelfViews views;
+    v::upsert(lib, vis->teach_entry(det, 0, *name, *mirror_ok, &views));
     if (!v::save_library(*library, lib, error)) {
       exit_code = fail("teach", error);
       return;
     }
-    std::printf("taught \"%s\" (%zu objects in %s)\n", name->c_str(), lib.entries.size(), library->c_str());
+    std::printf("taught \"%s\" (%zu objects in %s); its own views score %.3f-%.3f, accepted from %.3f\n",
+                name->c_str(), lib.entries.size(), library->c_str(), views.worst, views.median, views.threshold);
   });
 }
 

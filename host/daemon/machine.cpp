@@ -762,6 +762,35 @@ void Machine::job_clear_fault(Reply& reply) {
   reply.result({{"cleared", true}, {"firmware", status_json(st)}});
 }
 
+namespace {
+
+// Objects that resemble `name` but are not taken as it (issue 27: an untaught look-alike stays unknown): the
+// object whose best match is `name` below that entry's learnt threshold, or ambiguous with another taught
+// entry, and the object that matches another taught entry better. For the object_absent message.
+std::string look_alikes(const std::vector<vision::ScanObject>& objects, const std::string& name) {
+  std::string out;
+  char line[160];
+  for (const auto& o : objects) {
+    const vision::Identity& id = o.identity;
+    const std::string best = id.best.value_or(""), second = id.runner_up.value_or("");
+    const double score = id.best_score.value_or(0), threshold = id.threshold.value_or(0);
+    if (best == name && id.verdict == vision::Verdict::BelowThreshold)
+      std::snprintf(line, sizeof line, "#%d matches it %.2f, below its taught %.2f", o.index, score, threshold);
+    else if (best == name && id.verdict == vision::Verdict::Ambiguous)
+      std::snprintf(line, sizeof line, "#%d matches it %.2f, as well as \"%s\" %.2f", o.index, score, second.c_str(),
+                    id.runner_up_score.value_or(0));
+    else if (second == name && id.label)
+      std::snprintf(line, sizeof line, "#%d matches it %.2f, \"%s\" better %.2f", o.index,
+                    id.runner_up_score.value_or(0), best.c_str(), score);
+    else
+      continue;
+    out += (out.empty() ? "" : "; ") + std::string(line);
+  }
+  return out;
+}
+
+}  // namespace
+
 void Machine::job_pick(Reply& reply, const std::string& name, const std::string& place) {
   if (!config_.arm.places.count(place)) {
     std::string known;
@@ -784,10 +813,12 @@ void Machine::job_pick(Reply& reply, const std::string& name, const std::string&
   }
   if (!best) {
     // Absent: back home, then report the error naming the object (the paper's rule).
-    reply.event("absent", {{"name", name}, {"seen", seen}});
+    const std::string alike = look_alikes(scan.objects, name);
+    reply.event("absent", {{"name", name}, {"seen", seen}, {"look_alikes", alike}});
     if (!move_to(reply, "home", config_.arm.home)) return;
-    reply.error("object_absent", "object \"" + name + "\" is not in the scene" +
-                                     (seen.empty() ? std::string(" (no known object seen)") : " (seen: " + seen + ")"));
+    reply.error(ErrorCode::ObjectAbsent, "object \"" + name + "\" is not in the scene" +
+                                     (seen.empty() ? std::string(" (no known object seen)") : " (seen: " + seen + ")") +
+                                     (alike.empty() ? "" : "; not taken as it: " + alike));
     return;
   }
   reply.event("identified", {{"name", name}, {"index", best->index}, {"match_score", vision::number_json(best->identity.score)},

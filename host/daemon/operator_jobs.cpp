@@ -242,14 +242,7 @@ void Machine::job_teach(Reply& reply, const Request& r) {
                                  std::to_string(det.objects.size()) + " found)");
     return;
   }
-  const vision::DetectedObject& o = det.objects[k];
-  vision::LibraryEntry e;
-  e.name = r.name;
-  e.mirror_ok = r.mirror_ok;
-  e.profile = det.profiles[k];
-  e.area_px = o.geometry.area_px;
-  e.elongation = o.pose.elongation;
-  if (double ppc = vision_->px_per_cm_at(o.geometry.centroid); ppc > 0) e.area_cm2 = o.geometry.area_px / (ppc * ppc);
+  const vision::LibraryEntry e = vision_->teach_entry(det, k, r.name, r.mirror_ok);
   // The state library starts as a copy of the configured one, so teaching adds to what the file taught.
   vision::Library lib;
   const std::string target = state_->path(kLibraryFile);
@@ -270,7 +263,8 @@ void Machine::job_teach(Reply& reply, const Request& r) {
     return;
   }
   reply.result({{"taught", r.name}, {"index", r.index}, {"objects_in_library", lib.entries.size()}, {"library", target},
-                {"area_px", round3(e.area_px)}, {"elongation", round3(e.elongation)}});
+                {"area_px", round3(e.area_px)}, {"elongation", round3(e.elongation)},
+                {"threshold", round3(e.threshold.value_or(0))}});
 }
 
 }  // namespace rbx1::daemon

@@ -20,8 +20,11 @@ std::optional<double> distance_cm(const vision::ScanObject& o, const std::option
 std::string class_of(const vision::ScanObject& o) { return o.identity.label.value_or(kUnknownClass); }
 
 bool same_object(const vision::ScanObject& o, const std::string& cls, const std::optional<cv::Point2d>& c) {
+  // An unlabelled object whose best match is cls counts too: near its learnt threshold, a second look may fall
+  // just under it, and the object is still there, not gone.
+  bool looks_like = class_of(o) == cls || (!o.identity.label && o.identity.best == cls);
   auto d = distance_cm(o, c);
-  return class_of(o) == cls && d && *d <= kSameObjectCm;
+  return looks_like && d && *d <= kSameObjectCm;
 }
 
 const vision::ScanObject* find_same(const vision::Scan& scan, const std::string& cls,

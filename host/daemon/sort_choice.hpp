@@ -38,7 +38,8 @@ struct Sorting {
   std::map<std::string, int> left;    // classes the recipe does not map, left on the table
 };
 
-// A scanned object of cls within 1 cm of centroid_cm: the same object (objects lie apart by more than a finger).
+// A scanned object of cls (or unlabelled, best matching cls) within 1 cm of centroid_cm: the same object (objects
+// lie apart by more than a finger).
 bool same_object(const vision::ScanObject& object, const std::string& cls, const std::optional<cv::Point2d>& centroid_cm);
 // Of the scan's objects of cls, the nearest to centroid_cm within that distance; null when none.
 const vision::ScanObject* find_same(const vision::Scan& scan, const std::string& cls,

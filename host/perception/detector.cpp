@@ -72,11 +72,8 @@ bool detect(const cv::Mat& gray, const cv::Mat& background_gray, const DetectorO
     if (lib && !lib->entries.empty()) {
       std::optional<double> cm2;
       if (opt.px_per_cm > 0) cm2 = o.geometry.area_px / (opt.px_per_cm * opt.px_per_cm);
-      Match m = identify(*lib, profile, o.geometry.area_px, cm2, o.pose.elongation, opt.match);
-      if (m.entry >= 0 && m.score >= opt.match.threshold) {
-        o.identity.label = lib->entries[size_t(m.entry)].name;
-        o.identity.score = m.score;
-      }
+      o.identity = identity_of(*lib, identify(*lib, profile, o.geometry.area_px, cm2, o.pose.elongation, opt.match),
+                               opt.match);
     }
     o.layer = std::move(layer);
     o.index = int(out.objects.size()) + 1;

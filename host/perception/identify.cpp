@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 
 namespace rbx1::vision {
 
@@ -90,9 +91,138 @@ Match identify(const Library& lib, const std::vector<double>& profile, double ar
     }
     double z = best_rms / opt.shape_sigma;
     double score = std::exp(-0.5 * (z * z + size_dev * size_dev));
-    if (best.entry < 0 || score > best.score) best.entry = int(e), best.score = score;
+    if (best.entry < 0 || score > best.score) {
+      best.runner_up = best.entry, best.runner_up_score = best.score;
+      best.entry = int(e), best.score = score;
+    } else if (best.runner_up < 0 || score > best.runner_up_score) {
+      best.runner_up = int(e), best.runner_up_score = score;
+    }
   }
   return best;
+}
+
+const char* verdict_name(Verdict v) {
+  switch (v) {
+    case Verdict::Known: return "known";
+    case Verdict::NoLibrary: return "no_library";
+    case Verdict::BelowThreshold: return "below_threshold";
+    case Verdict::Ambiguous: return "ambiguous";
+  }
+  return "?";
+}
+
+double entry_threshold(const LibraryEntry& e, const MatchOptions& opt) {
+  return std::max(opt.threshold, e.threshold.value_or(0.0));
+}
+
+Verdict judge(const Library& lib, const Match& m, const MatchOptions& opt) {
+  if (m.entry < 0) return Verdict::NoLibrary;
+  if (m.score < entry_threshold(lib.entries[size_t(m.entry)], opt)) return Verdict::BelowThreshold;
+  if (m.runner_up >= 0 && m.runner_up_score >= entry_threshold(lib.entries[size_t(m.runner_up)], opt) &&
+      m.score - m.runner_up_score < opt.min_margin)
+    return Verdict::Ambiguous;
+  return Verdict::Known;
+}
+
+Identity identity_of(const Library& lib, const Match& m, const MatchOptions& opt) {
+  Identity id;
+  id.verdict = judge(lib, m, opt);
+  if (m.entry < 0) return id;
+  const LibraryEntry& best = lib.entries[size_t(m.entry)];
+  id.best = best.name;
+  id.best_score = m.score;
+  id.threshold = entry_threshold(best, opt);
+  if (m.runner_up >= 0) id.runner_up = lib.entries[size_t(m.runner_up)].name, id.runner_up_score = m.runner_up_score;
+  if (id.verdict == Verdict::Known) id.label = best.name, id.score = m.score;
+  return id;
+}
+
+namespace {
+
+// Area centroid and central second moments (per unit area) of a closed polygon (Green's theorem); false when
+// it encloses no area.
+bool polygon_moments(const std::vector<EdgePoint>& c, Geometry& g) {
+  const size_t n = c.size();
+  const double x0 = c[0].x, y0 = c[0].y;  // moments about a point on the polygon, for precision
+  double a2 = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+  for (size_t i = 0; i < n; ++i) {
+    double ax = c[i].x - x0, ay = c[i].y - y0, bx = c[(i + 1) % n].x - x0, by = c[(i + 1) % n].y - y0;
+    double cr = ax * by - bx * ay;
+    a2 += cr, sx += (ax + bx) * cr, sy += (ay + by) * cr;
+    sxx += (ax * ax + ax * bx + bx * bx) * cr, syy += (ay * ay + ay * by + by * by) * cr;
+    sxy += (ax * by + 2 * ax * ay + 2 * bx * by + bx * ay) * cr;
+  }
+  if (std::abs(a2) < 1e-9) return false;
+  double cx = sx / (3 * a2), cy = sy / (3 * a2);
+  g.centroid = {cx + x0, cy + y0};
+  g.mu20 = sxx / (6 * a2) - cx * cx;
+  g.mu02 = syy / (6 * a2) - cy * cy;
+  g.mu11 = sxy / (12 * a2) - cx * cy;
+  return true;
+}
+
+double signed_area(const std::vector<EdgePoint>& c) {
+  double a2 = 0;
+  for (size_t i = 0; i < c.size(); ++i) a2 += c[i].x * c[(i + 1) % c.size()].y - c[(i + 1) % c.size()].x * c[i].y;
+  return a2 / 2;
+}
+
+// One view of the taught contour: each point moved along its outward normal by offset + noise, then scaled and
+// turned about the centroid; weights, centroid, moments and area measured again (psi/rho left to cast_rays).
+Geometry view_of(const Geometry& g, double turn, double scale, double offset, double noise, std::mt19937& rng) {
+  const auto& c = g.contour;
+  const size_t n = c.size();
+  const double orient = signed_area(c) >= 0 ? 1 : -1;
+  std::normal_distribution<double> jitter(0, noise);
+  const double cs = std::cos(turn), sn = std::sin(turn);
+  Geometry v;
+  v.contour.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const EdgePoint& a = c[(i + n - 1) % n];
+    const EdgePoint& b = c[(i + 1) % n];
+    double tx = b.x - a.x, ty = b.y - a.y, len = std::max(std::hypot(tx, ty), 1e-9);
+    double d = offset + jitter(rng);
+    double x = c[i].x + d * orient * ty / len - g.centroid.x, y = c[i].y - d * orient * tx / len - g.centroid.y;
+    v.contour[i] = {g.centroid.x + scale * (cs * x - sn * y), g.centroid.y + scale * (sn * x + cs * y), 1};
+  }
+  for (size_t i = 0; i < n; ++i) {
+    const EdgePoint &p = v.contour[(i + n - 1) % n], &q = v.contour[i], &r = v.contour[(i + 1) % n];
+    v.contour[i].w = 0.5 * (std::hypot(q.x - p.x, q.y - p.y) + std::hypot(r.x - q.x, r.y - q.y));
+  }
+  v.area_px = g.area_px * std::abs(signed_area(v.contour) / signed_area(c));
+  if (!polygon_moments(v.contour, v)) v.centroid = g.centroid;
+  return v;
+}
+
+}  // namespace
+
+SelfViews learn_threshold(const Geometry& g, const LibraryEntry& entry, const MatchOptions& opt,
+                          const PoseOptions& pose, int lines) {
+  SelfViews out;
+  out.threshold = opt.threshold;
+  if (g.contour.size() < 3 || std::abs(signed_area(g.contour)) < 1) return out;
+  Library self;
+  self.entries.push_back(entry);
+  self.entries.back().threshold.reset();
+  std::mt19937 rng(27);  // the same views every time: teaching the same frame gives the same threshold
+  std::uniform_real_distribution<double> U(-1, 1);
+  std::vector<double> scores;
+  for (int k = 0; k < kSelfViews; ++k) {
+    double turn = 2 * M_PI * (k + 0.5 * (U(rng) + 1)) / kSelfViews;
+    Geometry v = view_of(g, turn, 1 + kViewScale * U(rng), kViewOffsetPx * U(rng), kViewNoisePx, rng);
+    Pose p = estimate_pose(v, pose);
+    std::vector<double> prof = identity_profile(v, p, cast_rays(v, lines), lines);
+    std::optional<double> cm2;
+    if (entry.area_cm2) cm2 = *entry.area_cm2 * v.area_px / g.area_px;
+    scores.push_back(identify(self, prof, v.area_px, cm2, p.elongation, opt).score);
+  }
+  std::sort(scores.begin(), scores.end());
+  out.worst = scores.front();
+  out.median = scores[scores.size() / 2];
+  // In the score's exponent: z = sqrt(-2 ln score) of the worst view, widened, at least kThresholdMinZ.
+  double z = std::max(kThresholdMinZ, kThresholdSpread * std::sqrt(-2 * std::log(std::max(out.worst, 1e-12))));
+  out.threshold = std::max(opt.threshold, std::exp(-0.5 * z * z));
+  return out;
 }
 
 }  // namespace rbx1::vision

@@ -5,12 +5,16 @@
 
 #include "grip.hpp"
 #include "library.hpp"
+#include "pose.hpp"
 #include "types.hpp"
 
 namespace rbx1::vision {
 
 struct MatchOptions {
-  double threshold = 0.5;     // score below this: unknown
+  double threshold = 0.5;     // score below this: unknown (every entry; a learnt LibraryEntry::threshold raises it)
+  // Two taught entries that both accept an object (each at or above its own threshold): the better one is
+  // taken only this far ahead, else the object is unknown (ambiguous between look-alikes).
+  double min_margin = 0.05;
   double shape_sigma = 0.035; // RMS profile difference (in sqrt(area) units) that costs a factor exp(-1/2)
   double size_sigma = 0.15;   // |log size ratio| that costs exp(-1/2); 0: size is ignored
   // Seen from above, an object of some height looks larger than its footprint (its top is nearer the camera, its
@@ -27,6 +31,8 @@ std::vector<double> identity_profile(const Geometry& g, const Pose& p, const Ray
 struct Match {
   int entry = -1;      // best library entry, -1 if the library is empty
   double score = 0;    // in [0, 1]
+  int runner_up = -1;  // second best entry, -1 with fewer than two entries
+  double runner_up_score = 0;
 };
 // Tries both ends of the axis (180-degree ambiguity), every rotation for near-isotropic objects, and the
 // mirror image for entries that allow it. The shape term tolerates a misalignment of angle_slack_bins: where a
@@ -35,5 +41,32 @@ struct Match {
 // area_cm2 is used for the size term when both sides have it.
 Match identify(const Library& lib, const std::vector<double>& profile, double area_px, std::optional<double> area_cm2,
                double elongation, const MatchOptions& opt);
+
+// Whether a match names its object (issue 27: an untaught look-alike stays unknown). The best entry must score
+// at least its own threshold (the learnt one, never below opt.threshold; opt.threshold for entries without one),
+// and when the runner-up also reaches its own threshold, the best must lead it by opt.min_margin.
+const char* verdict_name(Verdict v);  // "known", "no_library", "below_threshold", "ambiguous"
+double entry_threshold(const LibraryEntry& e, const MatchOptions& opt);
+Verdict judge(const Library& lib, const Match& m, const MatchOptions& opt);
+// The object's identity from its match: label and score when judged known; best, runner-up and verdict always.
+Identity identity_of(const Library& lib, const Match& m, const MatchOptions& opt);
+
+// The taught object's own views: its sub-pixel contour turned to angles all round, its edge moved in or out
+// (blur and threshold), scaled (camera height) and jittered (noise), each measured again (centroid, pose,
+// rays, profile) and matched against the entry. The threshold is what those views score, widened by
+// kThresholdSpread in the score's exponent (z = sqrt(-2 ln score)) and never below opt.threshold:
+// a shape whose views score 0.98 accepts from about 0.92, one whose own views vary (a thin L) accepts lower.
+inline constexpr int kSelfViews = 32;
+inline constexpr double kViewOffsetPx = 0.3;   // edge moved in or out by up to this (blur, threshold level)
+inline constexpr double kViewNoisePx = 0.1;    // per contour point (sensor noise on the sub-pixel edge)
+inline constexpr double kViewScale = 0.02;     // linear size within 1 +- this (camera height, calibration)
+inline constexpr double kThresholdSpread = 2.0;  // z of the threshold = this times z of the worst own view
+inline constexpr double kThresholdMinZ = 0.4;    // at least this z (score 0.92): views are never perfect
+struct SelfViews {
+  double worst = 1, median = 1;  // scores of the object's own views
+  double threshold = 0.5;        // the entry's learnt threshold
+};
+SelfViews learn_threshold(const Geometry& g, const LibraryEntry& entry, const MatchOptions& opt,
+                          const PoseOptions& pose, int lines);
 
 }  // namespace rbx1::vision

@@ -15,6 +15,9 @@ struct LibraryEntry {
   double area_px = 0;
   std::optional<double> area_cm2;    // when taught with a calibration
   double elongation = 1;
+  // Lowest score that is this object (learnt when teaching from its own views, identify.hpp learn_threshold);
+  // none in libraries taught before issue 27: the global MatchOptions::threshold (0.5) applies.
+  std::optional<double> threshold;
 };
 
 struct Library {

@@ -2,6 +2,10 @@
 // this only names them.
 #include "scan_json.hpp"
 
+#include <cmath>
+
+#include "identify.hpp"
+
 namespace rbx1::vision {
 
 using nlohmann::json;
@@ -15,6 +19,17 @@ namespace {
 json reason_json(const Grip& g) {
   const char* why = g.feasible ? nullptr : grip_reason_name(g.reason);
   return why ? json(why) : json(nullptr);
+}
+
+// The match behind label/match_score: null without a library.
+json identification_json(const Identity& id) {
+  if (id.verdict == Verdict::NoLibrary) return nullptr;
+  json margin = nullptr;
+  if (id.best_score && id.runner_up_score) margin = std::round((*id.best_score - *id.runner_up_score) * 1e4) / 1e4;
+  auto name = [](const std::optional<std::string>& v) { return v ? json(*v) : json(nullptr); };
+  return {{"verdict", verdict_name(id.verdict)}, {"best", name(id.best)}, {"best_score", number_json(id.best_score)},
+          {"threshold", number_json(id.threshold)}, {"runner_up", name(id.runner_up)},
+          {"runner_up_score", number_json(id.runner_up_score)}, {"margin", margin}};
 }
 }  // namespace
 
@@ -41,7 +56,8 @@ void to_json(json& j, const ScanObject& o) {
        {"elongation", o.pose.elongation},
        {"elongated", o.pose.elongated},
        {"grip", o.grip},
-       {"touching", o.touching}};
+       {"touching", o.touching},
+       {"identification", identification_json(o.identity)}};
 }
 
 void to_json(json& j, const Scan& s) {

@@ -61,9 +61,17 @@ struct Grip {
   std::optional<double> opening_cm;
 };
 
+// Identification's verdict on an object (identify.hpp judge).
+enum class Verdict { Known, NoLibrary, BelowThreshold, Ambiguous };
+
 struct Identity {
-  std::optional<std::string> label;
-  std::optional<double> score;  // best score, also when below the threshold (label null then)
+  std::optional<std::string> label;  // the taught name, when the verdict is Known
+  std::optional<double> score;       // its score (null with the label)
+  // The match behind it (with a library), also for an unknown object: the best entry, its threshold, the
+  // runner-up (second best entry) and why the label is null.
+  std::optional<std::string> best, runner_up;
+  std::optional<double> best_score, threshold, runner_up_score;
+  Verdict verdict = Verdict::NoLibrary;
 };
 
 struct DetectedObject {

@@ -129,6 +129,22 @@ bool Vision::run(const cv::Mat& frame, Detection& det, cv::Mat& processed, std::
   return true;
 }
 
+LibraryEntry Vision::teach_entry(const Detection& det, size_t k, const std::string& name, bool mirror_ok,
+                                 SelfViews* views) const {
+  const DetectedObject& o = det.objects[k];
+  LibraryEntry e;
+  e.name = name;
+  e.mirror_ok = mirror_ok;
+  e.profile = det.profiles[k];
+  e.area_px = o.geometry.area_px;
+  e.elongation = o.pose.elongation;
+  if (double ppc = px_per_cm_at(o.geometry.centroid); ppc > 0) e.area_cm2 = o.geometry.area_px / (ppc * ppc);
+  SelfViews v = learn_threshold(o.geometry, e, det_.match, det_.pose, det_.grip.lines);
+  e.threshold = v.threshold;
+  if (views) *views = v;
+  return e;
+}
+
 bool Vision::process(const cv::Mat& frame, nlohmann::json& result, std::string& error) {
   Detection det;
   cv::Mat processed;
@@ -148,6 +164,9 @@ Scan Vision::scan(const Detection& det) const {
     o.index = d.index;
     o.identity = d.identity;
     o.identity.score = d.identity.label ? round_opt(d.identity.score, 1e-4) : std::nullopt;
+    o.identity.best_score = round_opt(d.identity.best_score, 1e-4);
+    o.identity.threshold = round_opt(d.identity.threshold, 1e-4);
+    o.identity.runner_up_score = round_opt(d.identity.runner_up_score, 1e-4);
     o.centroid_px = pt(d.geometry.centroid, 1e-3);
     if (d.centroid_cm) o.centroid_cm = pt(*d.centroid_cm, 1e-4);
     o.area_px = std::lround(d.geometry.area_px);
@@ -180,6 +199,10 @@ std::string Vision::report(const Detection& det) const {
     out += line;
     if (has_library_) {
       if (o.identity.label) std::snprintf(line, sizeof line, "Identified as %s (match %.2f)\n", o.identity.label->c_str(), *o.identity.score);
+      else if (o.identity.best)
+        std::snprintf(line, sizeof line, "Identified as unknown (%s: nearest %s, match %.2f, its threshold %.2f)\n",
+                      verdict_name(o.identity.verdict), o.identity.best->c_str(), *o.identity.best_score,
+                      *o.identity.threshold);
       else std::snprintf(line, sizeof line, "Identified as unknown\n");
       out += line;
     }

@@ -49,6 +49,10 @@ class Vision {
   // What the scan reports, its figures rounded as published (scan_json.hpp writes it as the JSON document).
   Scan scan(const Detection& det) const;
   std::string report(const Detection& det) const;  // the paper's Figure 21
+  // Object k of det as a library entry (rbx1 teach, the daemon's teach): its identity profile, size and the
+  // threshold learnt from its own views (identify.hpp learn_threshold).
+  LibraryEntry teach_entry(const Detection& det, size_t k, const std::string& name, bool mirror_ok,
+                           SelfViews* views = nullptr) const;
   bool calibrated() const { return scale_ != nullptr; }
   double px_per_cm_at(cv::Point2d px) const { return scale_ ? scale_->px_per_cm_at(px) : 0; }
   const VisionOptions& options() const { return opt_; }

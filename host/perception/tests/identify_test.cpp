@@ -2,6 +2,7 @@
 // non-star-shaped objects, unknown objects, and the library file (round trip, corrupt files).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <functional>
@@ -198,8 +199,9 @@ std::vector<Poly> seen_from_above(const Poly& footprint, double height_mm, cv::P
   return out;
 }
 
-// The five classes of tools/world's library, taught flat (as data/demo/teach), in an 800 x 600 frame.
-Library world_library() {
+// The five classes of tools/world's library, taught flat (as data/demo/teach), in an 800 x 600 frame; learnt:
+// with the thresholds learnt from their own views (issue 27), else none (the global 0.5, as data/demo's).
+Library world_library(bool learnt = false) {
   Library lib;
   for (const char* name : {"l_shape", "star", "triangle", "rectangle", "ellipse"}) {
     Scene s;
@@ -212,7 +214,10 @@ Library world_library() {
       ADD_FAILURE() << name << ": " << det.objects.size() << " objects";
       continue;
     }
-    upsert(lib, {name, false, det.profiles[0], det.objects[0].geometry.area_px, std::nullopt, det.objects[0].pose.elongation});
+    LibraryEntry e{name, false, det.profiles[0], det.objects[0].geometry.area_px, std::nullopt,
+                   det.objects[0].pose.elongation, std::nullopt};
+    if (learnt) e.threshold = learn_threshold(det.objects[0].geometry, e, {}, {}, GripOptions{}.lines).threshold;
+    upsert(lib, e);
   }
   return lib;
 }
@@ -268,6 +273,32 @@ TEST(Identify, TallObjectsSeenOffTheAxisAreKnown) {
   }
   std::printf("known %d of %d (without the slack and the allowance: %d)\n", right, total, right_before);
   EXPECT_EQ(right, total);
+}
+
+// Issue 27's trade-off, measured: the same tall objects off the axis against thresholds learnt from flat teach
+// images. The views model a flat part seen from above; a tall one far off the axis changes shape beyond them.
+TEST(Identify, TallObjectsOffTheAxisAgainstLearntThresholds) {
+  Library lib = world_library(true);
+  ASSERT_EQ(lib.entries.size(), 5u);
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> U(0, 1);
+  int known = 0, total = 0, wrong = 0;
+  for (const char* name : {"l_shape", "star", "triangle", "rectangle", "ellipse"}) {
+    int k = 0;
+    for (int i = 0; i < 8; ++i, ++total) {
+      double h = 2 + 10 * U(rng), r = 120 + 200 * U(rng), t = 2 * M_PI * U(rng);
+      Match m = seen_tall(lib, name, h, {r * std::cos(t), 0.75 * r * std::sin(t)}, 360 * U(rng), 300 + total);
+      Identity id = identity_of(lib, m, {});
+      k += id.label && *id.label == name;
+      wrong += id.label && *id.label != name;
+    }
+    auto e = std::find_if(lib.entries.begin(), lib.entries.end(), [&](const LibraryEntry& x) { return x.name == name; });
+    std::printf("%-9s threshold %.3f: known %d of 8\n", name, e->threshold.value_or(0), k);
+    known += k;
+  }
+  std::printf("tall objects off the axis known %d of %d with learnt thresholds, wrong %d\n", known, total, wrong);
+  EXPECT_EQ(wrong, 0);
+  EXPECT_GE(known, total - 4);  // 40 of 40 when measured (issue 27); the L can fall to 0.85, under its 0.923
 }
 
 // The allowances do not let other objects through: classes the library does not hold, flat or tall, stay

@@ -25,9 +25,11 @@ TEST(Vision, JsonHasTheDesignFields) {
   ASSERT_EQ(j["objects"].size(), 2u);
   const auto& a = j["objects"][0];
   for (const char* key : {"index", "label", "match_score", "centroid_px", "centroid_cm", "area_px", "edge_points",
-                          "orientation_deg", "axis_line", "elongation", "elongated", "grip", "touching"})
+                          "orientation_deg", "axis_line", "elongation", "elongated", "grip", "touching",
+                          "identification"})
     EXPECT_TRUE(a.contains(key)) << key;
-  EXPECT_EQ(a.size(), 13u);
+  EXPECT_EQ(a.size(), 14u);
+  EXPECT_TRUE(a["identification"].is_null());  // no library
   EXPECT_EQ(a["grip"].size(), 7u);
   EXPECT_TRUE(a["grip"]["reason"].is_null());
   EXPECT_FALSE(a["touching"].get<bool>());

@@ -90,7 +90,37 @@ def _narrow_classes():
 
 
 NARROW_CLASSES = _narrow_classes()
-ALL_CLASSES = {**CLASSES, **NARROW_CLASSES}
+
+
+def _notched_rect(w, h, notch_w, notch_d, notch_x):
+    # A notch notch_w wide and notch_d deep in the side at +h/2, centred at x = notch_x.
+    a, b = notch_x - notch_w / 2, notch_x + notch_w / 2
+    return np.array([[-w / 2, -h / 2], [w / 2, -h / 2], [w / 2, h / 2], [b, h / 2], [b, h / 2 - notch_d],
+                     [a, h / 2 - notch_d], [a, h / 2], [-w / 2, h / 2]], float)
+
+
+def _flat_disc(r, cut, n=256):
+    # A disc with the part beyond x = cut (0 < cut < r) sliced off: a straight flat.
+    t0 = math.acos(cut / r)
+    t = t0 + np.arange(n + 1) * (2 * math.pi - 2 * t0) / n
+    return np.column_stack([r * np.cos(t), r * np.sin(t)])
+
+
+# Near-twin pairs (issue 27): two classes that differ slightly (10 % longer, a small notch, a flat, a longer
+# arm), so that a taught one and its untaught twin score alike. Outside the default mix (twins.py, the bench
+# tools/bench/perception-twins).
+TWIN_CLASSES = {
+    "plate": (_rect(2.4, 1.0), "2.4 x 1.0 cm rectangle"),
+    "plate_long": (_rect(2.64, 1.0), "the plate 10 % longer: 2.64 x 1.0 cm"),
+    "tab": (_rect(2.4, 1.6), "2.4 x 1.6 cm rectangle"),
+    "tab_notch": (_notched_rect(2.4, 1.6, 0.4, 0.3, 0.5), "the tab with a 0.4 x 0.3 cm notch in a long side"),
+    "disc": (_ellipse(1.5, 1.5), "3.0 cm disc"),
+    "disc_flat": (_flat_disc(1.5, 1.2), "the disc with a flat 0.3 cm deep"),
+    "bracket": (_l_shape(2.6, 2.0, 0.9), "L: 2.6 cm long arm, 2.0 cm short arm, 0.9 cm thick"),
+    "bracket_long": (_l_shape(2.6, 2.2, 0.9), "the bracket with its short arm 10 % longer (2.2 cm)"),
+}
+TWIN_PAIRS = [("plate", "plate_long"), ("tab", "tab_notch"), ("disc", "disc_flat"), ("bracket", "bracket_long")]
+ALL_CLASSES = {**CLASSES, **NARROW_CLASSES, **TWIN_CLASSES}
 
 
 def class_names():
