@@ -27,6 +27,7 @@ const std::vector<ErrorCode> kCodes = {
     {"camera_failed", C::Job, "the camera gave no frame"},
     {"vision_failed", C::Job, "the perception could not process the frame"},
     {"pick_failed", C::Job, "the pick check saw the object still there after the retries"},
+    {"pick_unverified", C::Job, "the pick check's frame showed no object at all where the scan before found several, twice"},
     {"rejected", C::Job, "the firmware refused a step"},
     {"timeout", C::Job, "a step or the job took longer than allowed"},
     {"link_down", C::Job, "the serial link stayed down longer than reconnect_timeout_s"},

@@ -1,5 +1,8 @@
 // pick_check.cpp - the daemon checks its own work: after a pick, a fresh scan must no longer show the object
 // where it was picked from; else a pick_failed event and, as configured, a new pick from that fresh detection.
+// A check frame that finds nothing where the scan before found several objects proves nothing (the light
+// dropped, the lens was covered: issue 27): it is taken once more, and a second blind frame is a
+// pick_unverified error, never a verified pick.
 #include <cmath>
 
 #include "machine.hpp"
@@ -26,15 +29,30 @@ const nlohmann::json* still_there(const nlohmann::json& detections, const std::s
   }
   return best;
 }
+
+// Blind: no object at all where the scan before found two or more (one was picked, the others should remain).
+bool blind(const nlohmann::json& detections, size_t before) { return before >= 2 && detections["objects"].empty(); }
 }  // namespace
 
 bool Machine::check_pick(Reply& reply, const std::string& name, const std::string& place, nlohmann::json picked,
-                         nlohmann::json& result) {
+                         size_t scanned, nlohmann::json& result) {
   for (int attempt = 1;; ++attempt) {
     if (!move_to(reply, "check_scan", config_.arm.scan)) return false;
     nlohmann::json detections;
     std::string report;
-    if (!capture_and_detect(reply, detections, report)) return false;
+    for (int frame = 1;; ++frame) {
+      if (!capture_and_detect(reply, detections, report)) return false;
+      if (!blind(detections, scanned)) break;
+      reply.event("check_blind", {{"name", name}, {"attempt", attempt}, {"frame", frame}, {"before", scanned}});
+      if (frame == 2) {
+        if (!move_to(reply, "home", config_.arm.home)) return false;
+        reply.error("pick_unverified", "the check after picking \"" + name + "\" found no object in two frames where " +
+                                           "the scan before found " + std::to_string(scanned) +
+                                           ": the camera sees nothing (light changed, lens covered?); the pick is not verified");
+        return false;
+      }
+    }
+    scanned = detections["objects"].size();
     const nlohmann::json* left = still_there(detections, name, picked["centroid_cm"]);
     if (!left) {
       reply.event("pick_verified", {{"name", name}, {"attempt", attempt}, {"centroid_cm", picked["centroid_cm"]}});
