@@ -52,6 +52,7 @@ bench: host firmware
 	@tools/bench/perception-speed
 	@tools/bench/perception-accuracy
 	@tools/bench/perception-corpus
+	@tools/bench/light-sweep
 	@tools/bench/daemon-latency
 	@tools/bench/bus
 	@tools/bench/console-live
