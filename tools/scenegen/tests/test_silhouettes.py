@@ -78,3 +78,21 @@ def test_teach_accepts_each_silhouette(tmp_path, path):
     assert [e["name"] for e in entries] == [name]
     ref = silhouettes.reference(path)
     assert abs(entries[0]["area_px"] - ref["area_px"]) <= AREA_TOL * ref["area_px"]
+
+
+@pytest.mark.parametrize("gain,offset", [(0.8, -10), (0.8, 10), (1.2, -10), (1.2, 10)])
+@pytest.mark.parametrize("path", FILES, ids=NAMES)
+def test_found_at_the_light_sweeps_extremes(tmp_path, path, gain, offset):
+    # The light drifted against the captured background (the README's promise: 0.8-1.2 times the light).
+    png, bg_png, off = write_frame(tmp_path, path, "dark")
+    img = cv2.imread(png).astype("float64") * gain + offset
+    cv2.imwrite(png, img.clip(0, 255).round().astype("uint8"))
+    p = subprocess.run([RBX1, "detect", png, "--json", "--background", bg_png], capture_output=True, text=True,
+                       timeout=60)
+    assert p.returncode == 0, p.stderr
+    objs = json.loads(p.stdout)["objects"]
+    assert len(objs) == 1, [o["centroid_px"] for o in objs]
+    ref = silhouettes.reference(path)
+    dx = objs[0]["centroid_px"][0] - ref["centroid_px"][0] - off[0]
+    dy = objs[0]["centroid_px"][1] - ref["centroid_px"][1] - off[1]
+    assert (dx * dx + dy * dy) ** 0.5 <= CENTROID_TOL_PX
