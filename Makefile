@@ -53,6 +53,7 @@ bench: host firmware
 	@tools/bench/perception-accuracy
 	@tools/bench/perception-twins
 	@tools/bench/perception-corpus
+	@tools/bench/light-sweep
 	@tools/bench/daemon-latency
 	@tools/bench/bus
 	@tools/bench/console-live

@@ -839,7 +839,7 @@ void Machine::job_pick(Reply& reply, const std::string& name, const std::string&
   nlohmann::json r{{"picked", name}, {"place", place}, {"steps", steps.size()},
                    {"position", std::vector<int32_t>(result.last.position, result.last.position + RBX1_JOINTS)},
                    {"link_recoveries", result.recovered}, {"resent_after_heartbeat_loss", result.resent}};
-  if (config_.daemon.verify_pick && !check_pick(reply, name, place, *best, r)) return;
+  if (config_.daemon.verify_pick && !check_pick(reply, name, place, *best, scan.objects.size(), r)) return;
   reply.result(r);
 }
 

@@ -110,9 +110,10 @@ class Machine {
   // once) to the detected event, the console and the bus. report: the paper's Figure 21. false after reply.error.
   bool capture_and_detect(Reply& reply, vision::Scan& scan, std::string* report = nullptr);
   // [daemon] verify_pick (pick_check.cpp): after a pick, a scan must no longer show the object where it was;
-  // else pick_failed and, up to pick_retries times, a new pick from the fresh detection. false after reply.error.
+  // else pick_failed and, up to pick_retries times, a new pick from the fresh detection; scanned: the objects the
+  // pick's own scan found (a check frame with none where it found several is blind). false after reply.error.
   bool check_pick(Reply& reply, const std::string& name, const std::string& place, vision::ScanObject picked,
-                  nlohmann::json& result);
+                  size_t scanned, nlohmann::json& result);
   bool ready(Reply& reply);
   // The operator's jobs (operator_jobs.cpp) and the workspace calibration (workspace_jobs.cpp).
   void job_jog(Reply& reply, const Request& request);

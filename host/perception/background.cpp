@@ -142,8 +142,15 @@ LightFit compensate_light(const cv::Mat& gray, const cv::Mat& bg, cv::Mat* corre
     if (vb >= 4.0 * m) {  // the table spans enough levels to tell gain from offset
       fit.gain = (sbg - sb * sg / m) / vb;
       fit.offset = (sg - fit.gain * sb) / m;
-    } else {  // a nearly uniform table: light changes are multiplicative, fit the gain alone
-      fit.gain = sbb > 0 ? sbg / sbb : 1.0;
+    } else {  // a nearly uniform table: light changes are multiplicative, fit the gain alone, as the median
+      // ratio of the kept samples (the table is most of them). A least-squares gain is pulled by the objects,
+      // and its residual cut then never leaves them out: a dark silhouette covering a quarter of a plain table
+      // read as a gain of 0.85, the whole table as foreground ("frame is 100% foreground", issue 27).
+      std::vector<float> ratio;
+      ratio.reserve(size_t(m));
+      for (size_t i = 0; i < n; ++i)
+        if (use[i]) ratio.push_back(g[i] / b[i]);
+      fit.gain = kth_smallest(ratio, ratio.size() / 2);
       fit.offset = 0;
     }
     fit.unchanged = m / double(n);

@@ -201,6 +201,62 @@ int local_table(const Contrast& con, cv::Mat& labels, int label, int sign, doubl
   return table;
 }
 
+// A shaded object (lit from one side: its contrast falls smoothly across it, issue 27) has a darker side below
+// its half level, which the object's one level would leave out of its outline (and a finger's contact inside
+// the material). Shaded: at least 10 of the component's deep pixels (3 px and more inside its outline) lie at or
+// below the half level, and the contrast where they meet the deep pixels above it rises gently (median Sobel
+// gradient under 5 % of the level per px): a ramp, not the step to a cast shadow, a fainter neighbour or a
+// two-tone part (a step's gradient is its height over the blur's width: a third of the level and more). Then
+// each pixel's level is the deep pixels' contrast around it (Gaussian-weighted, sigma 3 px, then 12 px, the
+// object's median where none lie near), at least max(12, 4 sigma), and the half level is half of it: the edge half-way between
+// the table and the object just inside it, as on a flat object. Returns false (local untouched) otherwise.
+bool shaded_level(const uchar* cbuf, const uchar* obuf, int W, int H, double level, int half_c, double sigma,
+                  cv::Mat& local) {
+  const cv::Mat c(H, W, CV_8U, const_cast<uchar*>(cbuf)), own(H, W, CV_8U, const_cast<uchar*>(obuf));
+  cv::Mat deep;
+  cv::erode(own, deep, cv::Mat(), cv::Point(-1, -1), 3, cv::BORDER_CONSTANT, cv::Scalar(0));
+  int n_deep = 0, n_low = 0;
+  for (int y = 0; y < H; ++y) {
+    const uchar* d = deep.ptr<uchar>(y);
+    const uchar* cr = c.ptr<uchar>(y);
+    for (int x = 0; x < W; ++x)
+      if (d[x]) ++n_deep, n_low += cr[x] <= half_c;
+  }
+  if (n_low < 10) return false;
+  std::vector<float> grad;
+  for (int y = 1; y + 1 < H; ++y) {
+    const uchar *d = deep.ptr<uchar>(y), *du = deep.ptr<uchar>(y - 1), *dd = deep.ptr<uchar>(y + 1);
+    const uchar *cr = c.ptr<uchar>(y), *cu = c.ptr<uchar>(y - 1), *cd = c.ptr<uchar>(y + 1);
+    for (int x = 1; x + 1 < W; ++x) {
+      if (!d[x] || cr[x] > half_c) continue;
+      const bool meets = (d[x - 1] && cr[x - 1] > half_c) || (d[x + 1] && cr[x + 1] > half_c) ||
+                         (du[x] && cu[x] > half_c) || (dd[x] && cd[x] > half_c);
+      if (!meets) continue;
+      const float gx = float(cu[x + 1] + 2 * cr[x + 1] + cd[x + 1] - cu[x - 1] - 2 * cr[x - 1] - cd[x - 1]) / 8.f;
+      const float gy = float(cd[x - 1] + 2 * cd[x] + cd[x + 1] - cu[x - 1] - 2 * cu[x] - cu[x + 1]) / 8.f;
+      grad.push_back(std::hypot(gx, gy));
+    }
+  }
+  if (grad.size() < 5) return false;
+  std::nth_element(grad.begin(), grad.begin() + long(grad.size() / 2), grad.end());
+  if (grad[grad.size() / 2] >= 0.05 * level) return false;
+  cv::Mat w, cw, num, den;
+  deep.convertTo(w, CV_32F, 1.0 / 255);
+  c.convertTo(cw, CV_32F);
+  cw = cw.mul(w);
+  // Near the deep pixels their contrast within 3 px; further out (a star's points, a T's stem on the dark side)
+  // within 12 px; the object's median only where neither reaches.
+  const float eps = 0.01f, floor_level = float(std::max(12.0, 4 * sigma));
+  cv::GaussianBlur(cw, num, cv::Size(), 12.0, 12.0, cv::BORDER_CONSTANT);
+  cv::GaussianBlur(w, den, cv::Size(), 12.0, 12.0, cv::BORDER_CONSTANT);
+  const cv::Mat wide = (num + eps * float(level)) / (den + eps);
+  cv::GaussianBlur(cw, num, cv::Size(), 3.0, 3.0, cv::BORDER_CONSTANT);
+  cv::GaussianBlur(w, den, cv::Size(), 3.0, 3.0, cv::BORDER_CONSTANT);
+  local = (num + eps * wide) / (den + eps);
+  local = cv::max(local, floor_level);
+  return true;
+}
+
 // One row of the contrast against the table, 8-bit and saturated at 0: sign * (gray - background) - table for a
 // polarity (the local table's level taken off), |gray - background| for a two-colour object (sign 0, no table).
 // Inline, so that it runs in the AVX2 clone of its caller.
@@ -290,12 +346,19 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign,
   // object at the low threshold, but fainter than half its contrast, stays out of the moments.
   // (An integer contrast c is above the half level exactly when it is above its floor.)
   const uchar half_c = uchar(std::min(int(std::floor(half)), 255));
+  cv::Mat local;  // per-pixel level of a shaded object; empty for a flat one (the usual case)
+  const bool shaded = sign > 0 && shaded_level(cbuf.data(), obuf.data(), W, H, level, half_c, con.noise_sigma, local);
   layer.inside.create(roi.size(), CV_8U);
   for (int y = 0; y < H; ++y) {
     const uchar* cr = cbuf.data() + size_t(y) * size_t(W);
     const uchar* orow = obuf.data() + size_t(y) * size_t(W);
     uchar* ir = layer.inside.ptr<uchar>(y);
-    for (int x = 0; x < W; ++x) ir[x] = orow[x] & uchar(-int(cr[x] > half_c));
+    if (shaded) {
+      const float* lr = local.ptr<float>(y);
+      for (int x = 0; x < W; ++x) ir[x] = orow[x] & uchar(-int(float(cr[x]) > lr[x] / 2));
+    } else {
+      for (int x = 0; x < W; ++x) ir[x] = orow[x] & uchar(-int(cr[x] > half_c));
+    }
   }
   cv::Mat near;
   dilate_square(layer.inside, near, 2);
@@ -307,6 +370,15 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign,
     const uchar* zrow = zbuf.data() + size_t(y) * size_t(W);
     const uchar* nr = near.ptr<uchar>(y);
     float* sr = layer.soft.ptr<float>(y);
+    if (shaded) {  // the same ramp about each pixel's own level
+      const float* lr = local.ptr<float>(y);
+      const float ns = float(2 * con.noise_sigma);
+      for (int x = 0; x < W; ++x) {
+        const float l = lr[x], lo_l = std::min(ns, 0.25f * l), hi_l = std::max(l - ns, 0.75f * l);
+        sr[x] = std::clamp((float(cr[x] & nr[x] & (orow[x] | zrow[x])) - lo_l) / (hi_l - lo_l), 0.f, 1.f);
+      }
+      continue;
+    }
     for (int x = 0; x < W; ++x) sr[x] = std::clamp(float(cr[x] & nr[x] & (orow[x] | zrow[x])) * a + b, 0.f, 1.f);
   }
   layer.roi = roi;
@@ -443,6 +515,16 @@ void drop_fringes(const Contrast& con, const IsolationOptions& opt, Isolation& o
 
 namespace {
 
+// Whether a layer's half-level region reaches the frame's edge: the object itself is cut by it. Its region at
+// the low threshold may reach the edge by its faint blurred rim alone (an object 1 px from the edge, issue 27).
+bool inside_at_edge(const Layer& layer, cv::Size frame) {
+  const cv::Mat& in = layer.inside;
+  const cv::Rect r = layer.roi;
+  return (r.x == 0 && cv::countNonZero(in.col(0))) || (r.y == 0 && cv::countNonZero(in.row(0))) ||
+         (r.br().x == frame.width && cv::countNonZero(in.col(in.cols - 1))) ||
+         (r.br().y == frame.height && cv::countNonZero(in.row(in.rows - 1)));
+}
+
 double threshold_of(const Contrast& con, const IsolationOptions& opt) {
   return std::max(opt.min_contrast, opt.noise_k * con.noise_sigma);
 }
@@ -542,11 +624,12 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
     cv::Rect kbox = k.box;
     const int table = local_table(con, out.labels, k.label, sg, low, kbox);
     make_layer(con, out.labels, k.label, sg, grow(kbox), out.threshold, layer, shelf, table);
+    const bool edge = k.edge && inside_at_edge(layer, d.size());
     // Near objects joined by their blurred edges at the low threshold come apart at the half level:
     // each piece big enough becomes an object of its own, with a new label.
     int big = 0;
     for (const auto& p : layer.pieces) big += p.first >= opt.min_area_px;
-    if (k.edge && big > 1) {  // apart at the half level: cut by the edge as a whole, as before
+    if (edge && big > 1) {  // apart at the half level: cut by the edge as a whole, as before
       ++out.border;
       continue;
     }
@@ -562,7 +645,7 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
       // Cut by the edge, the region's specks (outlines under the speck size: a fleck on water_coins.jpg's
       // scan beside its crowd of coins) are left out of the split, which takes one outline only.
       cv::Mat whole = layer.inside;
-      if (k.edge) {
+      if (edge) {
         std::vector<std::vector<cv::Point>> outlines;
         cv::findContours(layer.inside, outlines, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
         whole = layer.inside.clone();
@@ -582,8 +665,8 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
       // Cut by the edge, a crowd (three bodies or more) is kept apart; one body and its neighbour may be an
       // object and its own shadow running off the frame (the shadow-strong scenes: kept, both came out
       // misshapen), dropped whole as before.
-      if (bodies <= 1 || (k.edge && bodies < 3)) {
-        if (k.edge) ++out.border;
+      if (bodies <= 1 || (edge && bodies < 3)) {
+        if (edge) ++out.border;
         else out.layers.push_back(std::move(layer));
         continue;
       }
@@ -607,7 +690,7 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
         make_layer(con, out.labels, id, sg, grow(box), out.threshold, piece, shelf, table);
         piece.pieces.clear();
         piece.touching = true;
-        if (k.edge && at_edge(box)) ++out.border;
+        if (edge && inside_at_edge(piece, d.size())) ++out.border;
         else if (cv::countNonZero(piece.inside) >= opt.min_area_px) out.layers.push_back(std::move(piece));
       }
       continue;

@@ -88,6 +88,11 @@ class PickFailed(Rbx1Error):
     code = "pick_failed"
 
 
+class PickUnverified(Rbx1Error):
+    """The pick's check saw nothing at all, twice, where the scan before saw several objects (a blind frame)."""
+    code = "pick_unverified"
+
+
 class CameraFailed(Rbx1Error):
     code = "camera_failed"
 

@@ -30,7 +30,7 @@ def generate(out_dir, count, seed, touching):
     return docs
 
 
-def _inside(obj, point, tol=2.0):
+def inside_object(obj, point, tol=2.0):
     """The point lies in the object (2 px slack) or near its centroid (an open ring's lies in its hole)."""
     if np.hypot(point[0] - obj["centroid_px"][0], point[1] - obj["centroid_px"][1]) <= 10:
         return True
@@ -44,7 +44,7 @@ def score(truth, detections):
     a single object is found with one detection inside it and split with two or more; a touching group is split
     (as wanted) when each member holds exactly one, and cut when a member holds two or more."""
     objs = truth["objects"]
-    inside = {o["id"]: [k for k, d in enumerate(detections) if _inside(o, d["centroid_px"])] for o in objs}
+    inside = {o["id"]: [k for k, d in enumerate(detections) if inside_object(o, d["centroid_px"])] for o in objs}
     used = set(k for v in inside.values() for k in v)
     out = {"per_class": {}, "extra": len(detections) - len(used), "groups": 0, "groups_split": 0, "groups_cut": 0}
     for o in objs:

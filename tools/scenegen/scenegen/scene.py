@@ -21,7 +21,7 @@ class SceneSpec:
                  classes=None, p_touching=0.25, p_near=0.4, p_light=0.5, p_pattern=0.5, p_shadow=0.35,
                  blur=(0.5, 1.1), noise=(1.0, 3.5), light_strength=(0.05, 0.2), min_gap_px=14.0,
                  border_px=10.0, p_mixed=0.0, light_drift=0.0, shadow_offset=(2.0, 5.0),
-                 shadow_sigma=(2.5, 4.5), shadow_strength=(0.08, 0.18), p_colour=0.0):
+                 shadow_sigma=(2.5, 4.5), shadow_strength=(0.08, 0.18), p_colour=0.0, shaded=None):
         self.width, self.height, self.px_per_cm = width, height, px_per_cm
         self.min_objects, self.max_objects = min_objects, max_objects
         self.classes = list(classes or shapes.class_names())
@@ -39,6 +39,9 @@ class SceneSpec:
         # Colour tables (p_colour of the scenes): a saturated, textured table and saturated objects of other
         # hues, each object's grey level at least 40 from the table's (the detector thresholds grey).
         self.p_colour = p_colour
+        # Shaded objects (issue 27; None = off): each object lit from one side, its contrast against the table
+        # falling linearly across it, in a random direction, to a fraction drawn from this range on the far side.
+        self.shaded = shaded
 
 
 def _placed(name, px_per_cm, angle, centre):
@@ -133,6 +136,18 @@ def _colour_object(rng, table_hue, table_grey):
     return _hue_bgr(hue, float(rng.uniform(0.4, 0.8)), float(np.clip(grey, 15, 245)))
 
 
+def _shaded(rng, fractions, obj, xx, yy, xs, ys, table_level):
+    """The object lit from one side: its contrast against the table falls linearly along a random direction,
+    from whole on its lit side to a fraction (drawn from `fractions`) on the far side."""
+    th = rng.uniform(0, 2 * math.pi)
+    f = rng.uniform(*fractions)
+    along = math.cos(th) * xx + math.sin(th) * yy
+    span = math.cos(th) * xs + math.sin(th) * ys
+    t = np.clip((along - span.min()) / max(span.max() - span.min(), 1e-9), 0, 1)
+    return table_level + (obj - table_level) * (1 - (1 - f) * t)[..., None], {"towards_deg": math.degrees(th),
+                                                                             "far_fraction": f}
+
+
 def render_scene(rng, spec, names, polarity=None, table_kind=None, shadow=None, empty=False, placed=None):
     """Returns (scene BGR uint8, background BGR uint8, truth dict). `placed`: a fixed layout (objs, near,
     touching) instead of a random one."""
@@ -182,7 +197,7 @@ def render_scene(rng, spec, names, polarity=None, table_kind=None, shadow=None, 
         scene *= (1.0 - strength * m)[..., None]
         shadow_info = {"offset_px": [dist * math.cos(th), dist * math.sin(th)], "sigma_px": sigma,
                        "strength": strength}
-    levels = []
+    levels, shading = [], {}
     for a in alphas:
         if colour is not None:
             col = _colour_object(rng, colour[0], table_level)
@@ -204,6 +219,8 @@ def render_scene(rng, spec, names, polarity=None, table_kind=None, shadow=None, 
         shade = gx * (xx - xs.mean()) + gy * (yy - ys.mean())
         ab = a[y0:y1, x0:x1, None]
         obj = col[None, None, :] + shade[..., None]
+        if spec.shaded:
+            obj, shading[len(levels) - 1] = _shaded(rng, spec.shaded, obj, xx, yy, xs, ys, table_level)
         scene[y0:y1, x0:x1] = scene[y0:y1, x0:x1] * (1 - ab) + obj * ab
     blur = float(rng.uniform(*spec.blur))
     noise = float(rng.uniform(*spec.noise))
@@ -241,6 +258,7 @@ def render_scene(rng, spec, names, polarity=None, table_kind=None, shadow=None, 
             "touching": sorted(touching_ids.get(k, [])), "near": sorted(near_ids.get(k, [])),
             "contrast": abs(levels[k] - table_level),
             "polygon_px": [[round(x, 4), round(y, 4)] for x, y in poly],
+            **({"shading": shading[k]} if k in shading else {}),
         })
     doc = {
         "generator": "rbx1-scenegen", "version": GENERATOR_VERSION,
