@@ -143,9 +143,13 @@ def test_taught_data_is_saved_and_survives_a_restart(sim, daemon_factory, tmp_pa
     ok(d, {"cmd": "home"})
     _, scan = ok(d, {"cmd": "scan"})
     assert position(d) == scan_steps
-    labels = [o["label"] for o in scan["detections"]["objects"]]
-    assert "widget" in labels, labels
-    events, r = ok(d, {"cmd": "pick", "name": labels[1] if labels[1] != "widget" else labels[2], "place": "bin"})
+    # Object 1 was already in the library under another name: with "widget" taught from it, the two entries are
+    # twins, and the match names widget (as best or runner-up; issue 27: ambiguous, so no label is taken).
+    objects = scan["detections"]["objects"]
+    taught = next(o["identification"] for o in objects if o["index"] == 1)
+    assert "widget" in (taught["best"], taught["runner_up"]), taught
+    other = next(o["label"] for o in objects if o["index"] != 1 and o["label"] not in (None, "widget"))
+    events, r = ok(d, {"cmd": "pick", "name": other, "place": "bin"})
     planned = [e for e in events if e["event"] == "planned"][0]
     assert planned["place"] == "bin"
     # The background: the live (unchanged) scene as the empty table, so the next scan sees nothing.

@@ -23,7 +23,7 @@ SHOTS = e2e.ROOT / "build" / "e2e" / "console-jobs"
 @pytest.fixture
 def cell(tmp_path):
     scene_path = tmp_path / "world.json"
-    worldkit.make_world(scene_path, 21, objects=4, errors=(1.0, 0.0, 0.0), classes="rectangle,ellipse,triangle")
+    worldkit.make_world(scene_path, 21, objects=6, errors=(1.0, 0.0, 0.0), classes="rectangle,ellipse,triangle")
     c = worldkit.Cell(tmp_path, scene_path)
     yield c
     c.stop()

@@ -57,12 +57,12 @@ TEST(ScanJson, WritesTheDocumentExactly) {
             R"({"area_px":600,"axis_line":{"intercept":9.271,"slope":0.58905},"centroid_cm":[3.0125,2.0063],)"
             R"("centroid_px":[120.5,80.25],"edge_points":96,"elongated":true,"elongation":3.2,)"
             R"("grip":{"angle_deg":-44.65,"feasible":true,"opening_cm":0.7293,"opening_px":29.171,)"
-            R"("p1_px":[110.125,90.5],"p2_px":[130.875,70.0],"reason":null},"index":1,"label":"bolt",)"
+            R"("p1_px":[110.125,90.5],"p2_px":[130.875,70.0],"reason":null},"identification":null,"index":1,"label":"bolt",)"
             R"("match_score":0.9321,"orientation_deg":30.5,"touching":false},)"
             R"({"area_px":100,"axis_line":{"intercept":null,"slope":null},"centroid_cm":null,"centroid_px":[10.0,20.0],)"
             R"("edge_points":0,"elongated":false,"elongation":1.0,"grip":{"angle_deg":0.0,"feasible":false,)"
             R"("opening_cm":null,"opening_px":0.0,"p1_px":[0.0,0.0],"p2_px":[0.0,0.0],"reason":"too_wide"},)"
-            R"("index":2,"label":null,"match_score":null,"orientation_deg":0.0,"touching":true}],"px_per_cm":40.0})");
+            R"("identification":null,"index":2,"label":null,"match_score":null,"orientation_deg":0.0,"touching":true}],"px_per_cm":40.0})");
   // No warnings key unless the method could not decide; uncalibrated: px_per_cm null.
   s.px_per_cm.reset();
   s.objects.clear();

@@ -176,6 +176,11 @@ class NoObject(Rbx1Error):
     code = "no_object"
 
 
+class Uncalibrated(Rbx1Error):
+    """The command needs a calibration in force."""
+    code = "uncalibrated"
+
+
 class NoCalibration(Rbx1Error):
     """calibrate_workspace: no session in progress."""
     code = "no_calibration"

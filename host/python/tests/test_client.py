@@ -148,11 +148,13 @@ def test_request_errors_share_a_base(fake):
 
 
 def daemon_codes():
-    """Every error code that rbx1d's sources write (the CLI's own messages in host/cli are not replies)."""
+    """Every error code that rbx1d's sources write: the one list (error_codes.hpp) and the codes still written as
+    strings (the CLI's own messages in host/cli are not replies)."""
     direct = re.compile(r'(?:\.error\(|->error\(|fail\(|error_json\(|code = |error = \{|abort_reason_ = )'
                         r'\s*"([a-z_]+)"')
     chosen = re.compile(r'error\([^;"]*\?\s*"([a-z_]+)"\s*:\s*"([a-z_]+)"')  # error(held ? "estop_active" : "fault"
-    codes = set()
+    listed = re.compile(r'X\(\w+,\s*"([a-z_]+)"')
+    codes = set(listed.findall((ROOT / "host" / "daemon" / "error_codes.hpp").read_text()))
     for path in (ROOT / "host").rglob("*.cpp"):
         if path.parent.name != "cli" and not path.name.endswith("_test.cpp"):
             text = path.read_text(errors="replace")
