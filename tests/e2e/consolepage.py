@@ -9,10 +9,11 @@ import rbx1e2e as e2e
 
 
 def chromium(user_dir, width=1400, height=1100):
-    """Headless Chromium (Debian's chromium-driver) with a window of width x height CSS pixels."""
+    """Headless Chromium (Debian's chromium-driver) with a window of width x height CSS pixels. No GPU here: the
+    console's 3D view runs WebGL on Chromium's software renderer (SwiftShader), which newer Chromiums want asked for."""
     opts = webdriver.ChromeOptions()
     opts.binary_location = e2e.need("/usr/bin/chromium")
-    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-dev-shm-usage",
               f"--window-size={width},{height}", "--user-data-dir=" + str(user_dir)):
         opts.add_argument(a)
     drv = webdriver.Chrome(service=Service(e2e.need("/usr/bin/chromedriver")), options=opts)

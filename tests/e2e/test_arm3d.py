@@ -14,13 +14,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from selenium import webdriver
-from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select
 
 import rbx1e2e as e2e
-from consolepage import wait
+from consolepage import chromium, wait
 from conftest import fast_config
 
 SHOTS = e2e.ROOT / "build" / "e2e" / "arm3d"
@@ -43,15 +41,8 @@ def rig(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def browser(rig):
-    opts = webdriver.ChromeOptions()
-    opts.binary_location = e2e.need("/usr/bin/chromium")
-    # No GPU here: WebGL runs on Chromium's software renderer (SwiftShader), which newer Chromiums want asked for.
-    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
-              "--disable-dev-shm-usage", "--window-size=1400,1400",
-              "--user-data-dir=" + str(rig[1].log_path.parent / "chromium")):
-        opts.add_argument(a)
-    drv = webdriver.Chrome(service=Service(e2e.need("/usr/bin/chromedriver")), options=opts)
-    drv.set_page_load_timeout(30)
+    drv = chromium(rig[1].log_path.parent / "chromium", 1400, 1400)
+    drv.set_page_load_timeout(30)  # three.js is 600 kB
     drv.get(rig[2])
     SHOTS.mkdir(parents=True, exist_ok=True)
     yield drv

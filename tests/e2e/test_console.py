@@ -18,8 +18,6 @@ import urllib.request
 from pathlib import Path
 
 import pytest
-from selenium import webdriver
-from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 
 import rbx1e2e as e2e
@@ -45,13 +43,7 @@ def rig(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def browser(rig):
-    opts = webdriver.ChromeOptions()
-    opts.binary_location = e2e.need("/usr/bin/chromium")
-    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-              "--window-size=1400,1100", "--user-data-dir=" + str(rig[1].log_path.parent / "chromium")):
-        opts.add_argument(a)
-    drv = webdriver.Chrome(service=Service(e2e.need("/usr/bin/chromedriver")), options=opts)
-    drv.set_page_load_timeout(20)
+    drv = chromium(rig[1].log_path.parent / "chromium", 1400, 1100)
     open_page(drv, rig[2])
     SHOTS.mkdir(parents=True, exist_ok=True)
     yield drv
