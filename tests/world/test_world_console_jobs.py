@@ -15,7 +15,7 @@ from selenium.webdriver.support.ui import Select
 
 import worldkit
 from worldkit import e2e
-from consolepage import as_phone, chromium, reach, wait  # tests/e2e, on the path through worldkit
+from consolepage import as_phone, chromium, log_entries, reach, wait  # tests/e2e, on the path through worldkit
 
 SHOTS = e2e.ROOT / "build" / "e2e" / "console-jobs"
 
@@ -23,8 +23,10 @@ SHOTS = e2e.ROOT / "build" / "e2e" / "console-jobs"
 @pytest.fixture
 def cell(tmp_path):
     scene_path = tmp_path / "world.json"
-    worldkit.make_world(scene_path, 21, objects=6, errors=(1.0, 0.0, 0.0), classes="rectangle,ellipse,triangle")
-    c = worldkit.Cell(tmp_path, scene_path)
+    worldkit.make_world(scene_path, 21, objects=5, errors=(1.0, 0.0, 0.0), classes="rectangle,ellipse,triangle")
+    # In real time: a click on the page (Pause after a pick is shown) must land before the next pick ends, also on a
+    # loaded machine where the browser lags by seconds.
+    c = worldkit.Cell(tmp_path, scene_path, time_scale=1.0)
     yield c
     c.stop()
 
@@ -98,7 +100,14 @@ def test_a_sort_from_the_page_with_pause_and_resume_then_the_history_page(cell, 
     wait(browser, lambda b: progress(b)[0] == "ended", 120, "the cancelled clear never ended")
     summary = browser.find_element(By.ID, "job-summary").text
     cleared = [o for o in cell.world.state()["objects"] if o["place"]]
-    assert 1 <= len(cleared) <= 2 and all(o["place"] == "bin" for o in cleared), cleared
+    # It finishes the pick under way and no more. When the cancel reached the daemon (the log's order is the bus's;
+    # the page may show a pick late on a loaded machine), beyond the picks already verified there can be one placed
+    # and not yet verified (a pick is judged on the next cycle's scan) and one under way.
+    log = log_entries(browser)
+    at_cancel = next(i for i, (_, cmd, _) in enumerate(log) if cmd == "cancel")
+    verified = sum(1 for event, cmd, _ in log[:at_cancel] if cmd == "clear" and event == "pick_verified")
+    assert 1 <= len(cleared) <= verified + 2, (verified, cleared)
+    assert all(o["place"] == "bin" for o in cleared), cleared
     assert "clear (job 1) cancelled: picked %d" % len(cleared) in summary, summary
     # The chooser lists the saved recipes; the one just saved is chosen.
     choice = Select(browser.find_element(By.ID, "recipe-choice"))

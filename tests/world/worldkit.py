@@ -128,10 +128,10 @@ def daemon_config(tmp, scene_path, scene, camera):
 class Cell:
     """A world and rbx1d on it, ready to pick."""
 
-    def __init__(self, tmp, scene_path, annotate=None):
+    def __init__(self, tmp, scene_path, annotate=None, time_scale=TIME_SCALE):
         with open(scene_path) as f:
             self.scene = json.load(f)
-        self.world = World(tmp, scene_path)
+        self.world = World(tmp, scene_path, time_scale)
         try:
             configure_firmware(self.world.port)
             cfg = daemon_config(tmp, scene_path, self.scene, self.world.camera)
