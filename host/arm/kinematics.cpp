@@ -1,6 +1,7 @@
 // kinematics.cpp - the kinematic chain, the closed-form top-down IK and the choice among its solutions.
 #include "kinematics.hpp"
 
+#include <numbers>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -9,11 +10,10 @@ namespace rbx1::arm {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kLimitSlack = 1e-9;  // degrees: a solution landing exactly on a limit is within it
 
-double rad(double deg) { return deg * kPi / 180.0; }
-double deg(double rad) { return rad * 180.0 / kPi; }
+double rad(double deg) { return deg * std::numbers::pi / 180.0; }
+double deg(double rad) { return rad * 180.0 / std::numbers::pi; }
 
 Eigen::AngleAxisd rot_z(double d) { return Eigen::AngleAxisd(rad(d), Eigen::Vector3d::UnitZ()); }
 Eigen::AngleAxisd rot_y(double d) { return Eigen::AngleAxisd(rad(d), Eigen::Vector3d::UnitY()); }

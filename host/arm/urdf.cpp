@@ -1,6 +1,7 @@
 // urdf.cpp - writes the URDF: the kinematic chain, limits, tool0, camera_optical, fingers, simple shapes.
 #include "urdf.hpp"
 
+#include <numbers>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -14,7 +15,6 @@ const std::array<const char*, kJoints> kUrdfJointNames = {"joint_1", "joint_2", 
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 // URDF needs an effort limit on every moving joint; the config has no torques, so this is a placeholder.
 constexpr double kEffortPlaceholder = 10.0;
 
@@ -56,10 +56,10 @@ std::string revolute(const ArmConfig& cfg, int j, double z_m, const char* axis) 
   const JointConfig& jc = cfg.joints[j];
   std::string parent = j == 0 ? "base_link" : "link_" + std::to_string(j);
   // The firmware's MAX_SPEED in joint radians per second.
-  double rad_s = jc.max_speed_steps_s * 2 * kPi / (jc.motor_steps * jc.microsteps * jc.reduction);
+  double rad_s = jc.max_speed_steps_s * 2 * std::numbers::pi / (jc.motor_steps * jc.microsteps * jc.reduction);
   return joint_head(kUrdfJointNames[j], "revolute", parent, "link_" + std::to_string(j + 1)) +
          origin(xyz(0, 0, z_m)) + "    <axis xyz=\"" + axis + "\"/>\n    <limit lower=\"" +
-         num(jc.min_deg * kPi / 180) + "\" upper=\"" + num(jc.max_deg * kPi / 180) + "\" effort=\"" +
+         num(jc.min_deg * std::numbers::pi / 180) + "\" upper=\"" + num(jc.max_deg * std::numbers::pi / 180) + "\" effort=\"" +
          num(kEffortPlaceholder) + "\" velocity=\"" + num(rad_s) + "\"/>\n  </joint>\n";
 }
 
@@ -77,7 +77,7 @@ std::string fixed(const std::string& name, const std::string& parent, const std:
 Eigen::Isometry3d camera_in_tool(const ArmConfig& cfg) {
   Eigen::Isometry3d scan = fk(cfg.links, cfg.scan);
   scan.translation() /= 1000.0;
-  double a = cfg.camera.rotation_deg * kPi / 180, f = cfg.camera.flip_y ? -1.0 : 1.0;
+  double a = cfg.camera.rotation_deg * std::numbers::pi / 180, f = cfg.camera.flip_y ? -1.0 : 1.0;
   Eigen::Vector3d x(std::cos(a), std::sin(a), 0), y(-std::sin(a) * f, std::cos(a) * f, 0);
   Eigen::Matrix3d r;
   r.col(0) = x;

@@ -1,4 +1,5 @@
 // urdf_kdl_test.cpp - the URDF checked by others' code: KDL's FK from it against fk(), limits read back by urdfdom.
+#include <numbers>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -17,7 +18,6 @@
 namespace rbx1::arm {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 KDL::Chain chain_to(const ArmConfig& cfg, const std::string& tip) {
   KDL::Tree tree;
@@ -59,12 +59,12 @@ Agreement compare(const ArmConfig& cfg, int n) {
     Joints deg;
     for (int j = 0; j < kJoints; ++j) {
       deg[j] = std::uniform_real_distribution<double>(cfg.joints[j].min_deg, cfg.joints[j].max_deg)(rng);
-      q(j) = deg[j] * kPi / 180;
+      q(j) = deg[j] * std::numbers::pi / 180;
     }
     Eigen::Isometry3d ours = fk(cfg.links, deg), theirs = kdl_fk(chain, q);
     a.max_mm = std::max(a.max_mm, (ours.translation() - theirs.translation()).norm());
     Eigen::Quaterniond d(ours.linear().transpose() * theirs.linear());  // atan2: exact near zero, unlike acos
-    double angle = 2 * std::atan2(d.vec().norm(), std::fabs(d.w())) * 180 / kPi;
+    double angle = 2 * std::atan2(d.vec().norm(), std::fabs(d.w())) * 180 / std::numbers::pi;
     a.max_deg = std::max(a.max_deg, angle);
   }
   return a;
@@ -98,8 +98,8 @@ TEST(UrdfKdl, JointLimitsAreTheConfigs) {
     auto joint = model->getJoint(kUrdfJointNames[j]);
     ASSERT_TRUE(joint && joint->limits) << kUrdfJointNames[j];
     EXPECT_EQ(joint->type, urdf::Joint::REVOLUTE);
-    EXPECT_NEAR(joint->limits->lower, cfg.joints[j].min_deg * kPi / 180, 1e-12) << kUrdfJointNames[j];
-    EXPECT_NEAR(joint->limits->upper, cfg.joints[j].max_deg * kPi / 180, 1e-12) << kUrdfJointNames[j];
+    EXPECT_NEAR(joint->limits->lower, cfg.joints[j].min_deg * std::numbers::pi / 180, 1e-12) << kUrdfJointNames[j];
+    EXPECT_NEAR(joint->limits->upper, cfg.joints[j].max_deg * std::numbers::pi / 180, 1e-12) << kUrdfJointNames[j];
   }
   auto finger = model->getJoint(kUrdfFingerJoint);
   ASSERT_TRUE(finger && finger->limits);
@@ -118,7 +118,7 @@ TEST(UrdfKdl, CameraOpticalFollowsTheMount) {
     cfg.camera.rotation_deg = 30;
     cfg.camera.flip_y = flip;
     KDL::JntArray q(kJoints);
-    for (int j = 0; j < kJoints; ++j) q(j) = cfg.scan[j] * kPi / 180;
+    for (int j = 0; j < kJoints; ++j) q(j) = cfg.scan[j] * std::numbers::pi / 180;
     Eigen::Isometry3d cam = kdl_fk(chain_to(cfg, "camera_optical"), q);
     TablePoint o = vision_to_base(cfg, {0, 0}, 0), x = vision_to_base(cfg, {1, 0}, 0), y = vision_to_base(cfg, {0, 1}, 0);
     Eigen::Vector3d ex(x.x_mm - o.x_mm, x.y_mm - o.y_mm, 0), ey(y.x_mm - o.x_mm, y.y_mm - o.y_mm, 0);
@@ -138,7 +138,7 @@ TEST(UrdfKdl, FingerSlidesAlongTheClosingLine) {
   ASSERT_EQ(chain.getNrOfJoints(), unsigned(kJoints + 1));
   Joints deg{10, 20, 30, 40, 50, 60};
   KDL::JntArray q(kJoints + 1);
-  for (int j = 0; j < kJoints; ++j) q(j) = deg[j] * kPi / 180;
+  for (int j = 0; j < kJoints; ++j) q(j) = deg[j] * std::numbers::pi / 180;
   q(kJoints) = 0.02;
   Eigen::Isometry3d tool = fk(cfg.links, deg), finger = kdl_fk(chain, q);
   EXPECT_LT((finger.translation() - (tool.translation() + 20.0 * tool.linear().col(0))).norm(), 1e-6);

@@ -3,6 +3,7 @@
 // detections; the URDF once at start.
 #include "ros2_bridge.hpp"
 
+#include <numbers>
 #include <chrono>
 #include <cmath>
 
@@ -16,7 +17,6 @@ namespace rbx1::ros2 {
 
 namespace {
 using Clock = std::chrono::steady_clock;
-constexpr double kPi = 3.14159265358979323846;
 constexpr auto kRestPeriod = std::chrono::seconds(1);
 bool later(const Stamp& a, const Stamp& b) { return a.sec != b.sec ? a.sec > b.sec : a.nanosec > b.nanosec; }
 }  // namespace
@@ -39,7 +39,7 @@ bool joint_sample_from_status(const arm::ArmConfig& arm, const nlohmann::json& s
   arm::Joints deg = arm::steps_to_joints(arm, steps);  // the exact angles, not status's rounded joints_deg
   joints.names.assign(arm::kUrdfJointNames.begin(), arm::kUrdfJointNames.end());
   joints.positions.clear();
-  for (double d : deg) joints.positions.push_back(d * kPi / 180);
+  for (double d : deg) joints.positions.push_back(d * std::numbers::pi / 180);
   if (fw->contains("gripper_us") && (*fw)["gripper_us"].is_number()) {
     joints.names.push_back(arm::kUrdfFingerJoint);
     joints.positions.push_back(arm::finger_position_m(arm.gripper, (*fw)["gripper_us"].get<int>()));
@@ -64,7 +64,7 @@ std::vector<DetectionSample> detections_from_scan(const vision::Scan& scan) {
     d.cy = o.centroid_px.y;
     // The box turned to the grip: x along the closing line, as wide as the opening; y the length that gives the
     // object's area (the detector reports no box).
-    d.theta = o.grip.angle_deg * kPi / 180;
+    d.theta = o.grip.angle_deg * std::numbers::pi / 180;
     d.size_x = o.grip.opening_px;
     d.size_y = d.size_x > 0 ? double(o.area_px) / d.size_x : 0;
     out.push_back(d);

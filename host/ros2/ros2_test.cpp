@@ -1,4 +1,5 @@
 // ros2_test.cpp - [ros2] parsing, namespace rules, and the bus -> ROS 2 message conversions.
+#include <numbers>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -19,7 +20,6 @@
 namespace rbx1::ros2 {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 bool parse(const std::string& text, Ros2Config& out, config::Errors& errors, const std::string& arm_id = "Lab Arm-2") {
   toml::table root = config::parse_text(text, errors);
@@ -88,7 +88,7 @@ TEST(Ros2Convert, JointStatesFromFirmwarePosition) {
   EXPECT_EQ(js.names[0], "joint_1");
   EXPECT_EQ(js.names[6], "finger_left_joint");
   arm::Joints back = arm::steps_to_joints(arm, steps);
-  for (int j = 0; j < arm::kJoints; ++j) EXPECT_DOUBLE_EQ(js.positions[j], back[j] * kPi / 180);
+  for (int j = 0; j < arm::kJoints; ++j) EXPECT_DOUBLE_EQ(js.positions[j], back[j] * std::numbers::pi / 180);
   EXPECT_NEAR(js.positions[6], 0.0125, 1e-12);  // half of 25 mm
   Eigen::Vector3d p = arm::fk(arm.links, back).translation() / 1000;
   EXPECT_NEAR(tp.position_m[0], p.x(), 1e-12);
@@ -117,7 +117,7 @@ TEST(Ros2Convert, DetectionsFromScan) {
   EXPECT_EQ(d[0].id, "0");
   EXPECT_DOUBLE_EQ(d[0].score, 0.93);
   EXPECT_DOUBLE_EQ(d[0].cx, 120.5);
-  EXPECT_NEAR(d[0].theta, kPi / 2, 1e-12);
+  EXPECT_NEAR(d[0].theta, std::numbers::pi / 2, 1e-12);
   EXPECT_DOUBLE_EQ(d[0].size_x, 20);
   EXPECT_DOUBLE_EQ(d[0].size_y, 30);
   EXPECT_EQ(d[1].class_id, "");
@@ -184,7 +184,7 @@ TEST(Ros2Bridge, PublishesTheBusOverDds) {
   auto* m = static_cast<sensor_msgs_msg_dds__JointState_*>(sample);
   ASSERT_EQ(m->position._length, 7u);
   arm::Joints deg = arm::steps_to_joints(arm, steps);
-  EXPECT_DOUBLE_EQ(m->position._buffer[2], deg[2] * kPi / 180);
+  EXPECT_DOUBLE_EQ(m->position._buffer[2], deg[2] * std::numbers::pi / 180);
   EXPECT_STREQ(m->name._buffer[6], "finger_left_joint");
   EXPECT_STREQ(m->header.frame_id, "");
   EXPECT_EQ(m->header.stamp.sec, 1700000000);

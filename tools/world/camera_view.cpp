@@ -1,6 +1,7 @@
 // camera_view.cpp - FK to the camera, projection of the scene's polygons through the lens (OpenCV), light, noise.
 #include "camera_view.hpp"
 
+#include <numbers>
 #include <algorithm>
 #include <cmath>
 
@@ -13,12 +14,11 @@
 namespace rbx1::world {
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
 constexpr int kSuper = 2;         // supersampling per axis: polygons are filled at 2x and averaged down
 constexpr int kShift = 4;         // fillPoly's fractional bits
 constexpr double kStepMm = 1.5;   // edges are cut into pieces this long so the lens bends them
 
-double rad(double d) { return d * kPi / 180.0; }
+double rad(double d) { return d * std::numbers::pi / 180.0; }
 
 Eigen::Matrix3d rpy(const std::array<double, 3>& deg) {
   return (Eigen::AngleAxisd(rad(deg[2]), Eigen::Vector3d::UnitZ()) *

@@ -1,6 +1,7 @@
 // scene.cpp - reading the scene file (JSON, every error naming its field) and drawing the errors from the seed.
 #include "scene.hpp"
 
+#include <numbers>
 #include <cmath>
 #include <fstream>
 #include <random>
@@ -12,7 +13,6 @@ namespace rbx1::world {
 
 namespace {
 using nlohmann::json;
-constexpr double kPi = 3.14159265358979323846;
 
 struct Bad : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -226,7 +226,7 @@ bool load_scene(const std::string& path, Scene& out, std::string& error, std::op
 
 const Place* place_at(const Scene& s, double x, double y) {
   for (const Place& p : s.places) {
-    double a = -p.yaw_deg * kPi / 180;
+    double a = -p.yaw_deg * std::numbers::pi / 180;
     double dx = x - p.x_mm, dy = y - p.y_mm;
     double u = std::cos(a) * dx - std::sin(a) * dy, v = std::sin(a) * dx + std::cos(a) * dy;
     if (std::abs(u) <= p.size_x_mm / 2 && std::abs(v) <= p.size_y_mm / 2) return &p;
@@ -235,7 +235,7 @@ const Place* place_at(const Scene& s, double x, double y) {
 }
 
 Polygon placed_outline(const Object& o) {
-  double a = o.yaw_deg * kPi / 180, c = std::cos(a), s = std::sin(a);
+  double a = o.yaw_deg * std::numbers::pi / 180, c = std::cos(a), s = std::sin(a);
   Polygon out;
   out.reserve(o.outline.size());
   for (const auto& p : o.outline) out.emplace_back(o.x_mm + c * p.x() - s * p.y(), o.y_mm + s * p.x() + c * p.y());

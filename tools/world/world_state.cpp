@@ -1,6 +1,7 @@
 // world_state.cpp - the gripper model and the arm's sweep: grasps, collisions, releases, each logged as an event.
 #include "world_state.hpp"
 
+#include <numbers>
 #include <algorithm>
 #include <cmath>
 
@@ -12,7 +13,6 @@ namespace rbx1::world {
 using nlohmann::json;
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kSampleDeg = 0.5;  // a move is checked every half degree of its largest joint change
 constexpr int kTable = -1;          // the table in a move's list of things hit
 constexpr double kClosedMm = 1.0;   // closing below this with nothing held: the fingers closed on nothing
@@ -27,7 +27,7 @@ double axis_diff_deg(double a, double b) {
 Eigen::Isometry3d object_frame(const Object& o) {
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
   t.translation() = Eigen::Vector3d(o.x_mm, o.y_mm, o.z_mm);
-  t.linear() = Eigen::AngleAxisd(o.yaw_deg * kPi / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  t.linear() = Eigen::AngleAxisd(o.yaw_deg * std::numbers::pi / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   return t;
 }
 
@@ -173,7 +173,7 @@ void World::at_pose(const arm::Joints& deg, bool, std::vector<int>& hit) {
     o.y_mm = f.translation().y();
     o.z_mm = f.translation().z();
     Eigen::Vector3d x = f.linear().col(0);
-    o.yaw_deg = std::atan2(x.y(), x.x()) * 180 / kPi;
+    o.yaw_deg = std::atan2(x.y(), x.x()) * 180 / std::numbers::pi;
   }
   const Gripper& g = scene_.gripper;
   Eigen::Vector3d ux = t.linear().col(0);
@@ -230,7 +230,7 @@ void World::gripper_to(double opening) {
       // The fingers centre the object on the closing line, then hold it.
       double shift = -(lo + hi) / 2;
       double offset = std::hypot(o.x_mm - c.x(), o.y_mm - c.y());
-      double closing_yaw = std::atan2(u.y(), u.x()) * 180 / kPi;
+      double closing_yaw = std::atan2(u.y(), u.x()) * 180 / std::numbers::pi;
       double yaw_err = axis_diff_deg(closing_yaw, o.yaw_deg + o.grip_yaw_deg);
       o.x_mm += u.x() * shift;
       o.y_mm += u.y() * shift;
