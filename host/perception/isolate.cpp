@@ -542,24 +542,32 @@ void isolation_levels(const Contrast& con, const IsolationOptions& opt, int& low
   high = int(std::floor(t));
 }
 
-bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, std::string& error,
-             const Labelling* dark) {
+namespace {
+
+// A region kept for the per-object pass: its label, its box, and whether the box reaches the frame's edge.
+struct Candidate {
+  int label;
+  cv::Rect box;
+  bool edge;
+};
+
+// Labels the regions of each polarity (both in auto mode) into out.labels, apart so that a dark and a light object
+// side by side stay two regions; their labels share one image, with one entry of out.sign / out.obstacle each.
+// Hysteresis: a region is grown down to the low threshold from pixels above the threshold, so an object whose
+// contrast dips on its relief or a dull side (a worn coin on a textured cloth) stays one region, while table
+// texture that never reaches the threshold stays out. Cleaning: a 3x3 opening (isolated noise pixels and
+// hairlines). A polarity with nothing above the threshold adds no regions (the usual case for one of the two).
+// Returns the count of pixels above the threshold.
+long long label_regions(const Contrast& con, const IsolationOptions& opt, const Labelling* dark, Isolation& out,
+                        std::vector<Component>& regions) {
   const cv::Mat& d = con.gray;
-  out.threshold = threshold_of(con, opt);
-  // One binary image per polarity (both in auto mode), labelled apart so that a dark and a light object
-  // side by side stay two regions; their labels share one image.
   const std::vector<int> signs = con.sign == 0 ? std::vector<int>{-1, +1} : std::vector<int>{con.sign};
   out.labels = cv::Mat();  // the dark polarity's, or a zeroed frame for the first pass below
   out.obstacle.assign(1, 0);
   out.sign.assign(1, 0);
-  std::vector<Component> regions(1), comps;
+  regions.assign(1, Component{});
+  std::vector<Component> comps;
   long long fg_pixels = 0;
-  // Hysteresis: a region is grown down to the low threshold from pixels above the threshold, so an object
-  // whose contrast dips on its relief or a dull side (a worn coin on a textured cloth) stays one region,
-  // while table texture that never reaches the threshold stays out. Cleaning: a 3x3 opening (isolated noise
-  // pixels and hairlines). A polarity with nothing above the threshold adds no regions (the usual case for
-  // one of the two).
-  const double low = low_of(opt, out.threshold);
   int low_i = 0, high_i = 0;
   isolation_levels(con, opt, low_i, high_i);
   for (int sg : signs) {
@@ -580,153 +588,197 @@ bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, s
       out.obstacle.push_back(0);
     }
   }
-  double fg = double(fg_pixels) / double(d.total());
+  return fg_pixels;
+}
+
+// The regions that reach the threshold and the speck size, in label order; the smaller ones are counted as
+// specks. A region cut by the frame's edge is no object; but a crowd of touching objects (water_coins.jpg's 24
+// coins, one region reaching the left and bottom edges) is split first, and only its bodies cut by the edge go.
+std::vector<Candidate> candidates(const std::vector<Component>& regions, const IsolationOptions& opt, cv::Size frame,
+                                  Isolation& out) {
+  std::vector<Candidate> keep;
+  for (int i = 1; i < int(regions.size()); ++i) {
+    const Component& r = regions[size_t(i)];
+    if (!r.strong) continue;  // never reaches the threshold: not an object
+    if (r.area < opt.min_area_px) {
+      ++out.specks;
+      continue;
+    }
+    out.obstacle[size_t(i)] = 1;
+    const cv::Rect& b = r.box;
+    const bool edge = b.x == 0 || b.y == 0 || b.br().x == frame.width || b.br().y == frame.height;
+    if (edge && !opt.split_touching) {
+      ++out.border;
+      continue;
+    }
+    keep.push_back({i, b, edge});
+  }
+  return keep;
+}
+
+// The mask without its outlines under the speck size: cut by the edge, a region's specks (a fleck on
+// water_coins.jpg's scan beside its crowd of coins) are left out of the split, which takes one outline only.
+cv::Mat without_specks(const cv::Mat& inside, int min_area_px) {
+  std::vector<std::vector<cv::Point>> outlines;
+  cv::findContours(inside, outlines, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+  cv::Mat whole = inside.clone();
+  for (size_t i = 0; i < outlines.size(); ++i)
+    if (cv::contourArea(outlines[i]) < min_area_px) cv::drawContours(whole, outlines, int(i), cv::Scalar(0), cv::FILLED);
+  return whole;
+}
+
+// The per-object pass over each kept region: its soft layer, then one object, touching bodies cut apart, or the
+// pieces that come apart at the half level, each appended to out.layers (new pieces get labels of their own).
+class RegionPass {
+ public:
+  RegionPass(const Contrast& con, const IsolationOptions& opt, Isolation& out)
+      : con_(con), opt_(opt), out_(out), frame_(0, 0, con.gray.cols, con.gray.rows),
+        low_(low_of(opt, out.threshold)), shelf_(opt.soft_shade && con.modelled) {}
+
+  void run(const Candidate& k) {
+    Layer layer;
+    const int sg = out_.sign[size_t(k.label)];
+    cv::Rect kbox = k.box;
+    const int table = local_table(con_, out_.labels, k.label, sg, low_, kbox);
+    make_layer(con_, out_.labels, k.label, sg, grow(kbox), out_.threshold, layer, shelf_, table);
+    const bool edge = k.edge && inside_at_edge(layer, frame_.size());
+    int big = 0;
+    for (const auto& p : layer.pieces) big += p.first >= opt_.min_area_px;
+    if (edge && big > 1) {  // apart at the half level: cut by the edge as a whole
+      ++out_.border;
+      return;
+    }
+    if (big > 1) return half_level_pieces(layer, k.label, sg, table);
+    if (cv::countNonZero(layer.inside) < opt_.min_area_px) {
+      ++out_.specks;
+      return;
+    }
+    layer.pieces.clear();
+    cv::Mat parts;
+    const int bodies = touching_bodies(layer, edge, sg, table, parts);
+    // Cut by the edge, a crowd (three bodies or more) is kept apart; one body and its neighbour may be an object
+    // and its own shadow running off the frame (the shadow-strong scenes: kept, both came out misshapen), dropped
+    // whole.
+    if (bodies <= 1 || (edge && bodies < 3)) {
+      if (edge) ++out_.border;
+      else out_.layers.push_back(std::move(layer));
+      return;
+    }
+    cut_bodies(layer, parts, bodies, k.label, sg, table, edge);
+  }
+
+ private:
+  cv::Rect grow(cv::Rect box) const {
+    return cv::Rect(box.x - opt_.margin_px, box.y - opt_.margin_px, box.width + 2 * opt_.margin_px,
+                    box.height + 2 * opt_.margin_px) & frame_;
+  }
+
+  int new_label(int sg) {
+    const int id = int(out_.obstacle.size());
+    out_.obstacle.push_back(1);
+    out_.sign.push_back(int8_t(sg));
+    return id;
+  }
+
+  // The layer of a piece given a label of its own, grown around its box.
+  Layer layer_of(int id, int sg, cv::Rect box, int table) const {
+    Layer piece;
+    make_layer(con_, out_.labels, id, sg, grow(box), out_.threshold, piece, shelf_, table);
+    piece.pieces.clear();
+    return piece;
+  }
+
+  // The count of touching bodies in the region (`parts`: their labels); bodies of different contrast are cut
+  // where the contrast changes (a dark sweet before a red one).
+  int touching_bodies(const Layer& layer, bool edge, int sg, int table, cv::Mat& parts) const {
+    if (!opt_.split_touching) return 1;
+    SplitOptions so = opt_.split;
+    so.min_area_px = opt_.min_area_px;
+    const int bodies = split_touching(edge ? without_specks(layer.inside, opt_.min_area_px) : layer.inside, so, parts);
+    if (bodies > 1) {
+      cv::Mat contrast(layer.roi.size(), CV_8U);
+      const cv::Mat g = con_.gray(layer.roi), bg = con_.background(layer.roi);
+      for (int y = 0; y < contrast.rows; ++y)
+        contrast_row(g.ptr<uchar>(y), bg.ptr<uchar>(y), sg, table, contrast.cols, contrast.ptr<uchar>(y));
+      cut_between_levels(contrast, con_.noise_sigma, bodies, parts);
+    }
+    return bodies;
+  }
+
+  // Touching objects: each body gets a label of its own; the soft edge band around the bodies (the component's
+  // pixels outside the half level) goes to the nearest body.
+  void cut_bodies(const Layer& layer, const cv::Mat& parts, int bodies, int label, int sg, int table, bool edge) {
+    cv::Mat lab = out_.labels(layer.roi), own = lab == label, p16;
+    parts.convertTo(p16, CV_16U);
+    for (int i = 0; i < opt_.margin_px + 2; ++i) {
+      cv::Mat grown;
+      cv::dilate(p16, grown, cv::Mat());
+      grown.copyTo(p16, (p16 == 0) & own);
+    }
+    for (int b = 1; b <= bodies; ++b) {
+      const int id = new_label(sg);
+      cv::Mat body = (p16 == b) & own;
+      lab.setTo(id, body);
+      Layer piece = layer_of(id, sg, cv::boundingRect(body) + layer.roi.tl(), table);
+      piece.touching = true;
+      if (edge && inside_at_edge(piece, frame_.size())) ++out_.border;
+      else if (cv::countNonZero(piece.inside) >= opt_.min_area_px) out_.layers.push_back(std::move(piece));
+    }
+  }
+
+  // Near objects joined by their blurred edges at the low threshold come apart at the half level: each piece big
+  // enough becomes an object of its own. A piece far fainter and smaller than another piece of its region is that
+  // object's soft shadow (the shade between two sweets joins them at the low threshold), not an object nor an
+  // obstacle.
+  void half_level_pieces(const Layer& layer, int label, int sg, int table) {
+    std::vector<Layer> pieces;
+    for (const auto& p : layer.pieces) {
+      if (p.first < opt_.min_area_px) continue;
+      const int id = new_label(sg);
+      cv::Mat mask(layer.roi.size(), CV_8U, cv::Scalar(0));
+      cv::drawContours(mask, std::vector<std::vector<cv::Point>>{p.second}, 0, cv::Scalar(255), cv::FILLED);
+      cv::Mat lab = out_.labels(layer.roi);
+      lab.setTo(id, mask & (lab == label));
+      Layer piece = layer_of(id, sg, cv::boundingRect(p.second) + layer.roi.tl(), table);
+      if (cv::countNonZero(piece.inside) >= opt_.min_area_px) pieces.push_back(std::move(piece));
+    }
+    std::vector<char> shade(pieces.size(), 0);
+    for (size_t i = 0; i < pieces.size(); ++i)
+      for (const Layer& other : pieces)
+        shade[i] = shade[i] || (other.level >= opt_.fringe_ratio * pieces[i].level &&
+                                cv::countNonZero(pieces[i].inside) <= 0.25 * cv::countNonZero(other.inside));
+    for (size_t i = 0; i < pieces.size(); ++i) {
+      if (shade[i]) {
+        ++out_.fringes;
+        out_.obstacle[size_t(pieces[i].label)] = 0;
+      } else {
+        out_.layers.push_back(std::move(pieces[i]));
+      }
+    }
+  }
+
+  const Contrast& con_;
+  const IsolationOptions& opt_;
+  Isolation& out_;
+  const cv::Rect frame_;
+  const double low_;
+  const bool shelf_;  // a captured background has its own shade model
+};
+
+}  // namespace
+
+bool isolate(const Contrast& con, const IsolationOptions& opt, Isolation& out, std::string& error,
+             const Labelling* dark) {
+  out.threshold = threshold_of(con, opt);
+  std::vector<Component> regions;
+  const double fg = double(label_regions(con, opt, dark, out, regions)) / double(con.gray.total());
   if (fg > opt.max_foreground) {
     error = "frame is " + std::to_string(int(std::lround(fg * 100))) +
             "% foreground: wrong background image or polarity, or no table in view";
     return false;
   }
-  const int n = int(regions.size());
-  struct Cand { int label; cv::Rect box; bool edge; };
-  std::vector<Cand> keep;
-  auto at_edge = [&](cv::Rect box) {
-    return box.x == 0 || box.y == 0 || box.br().x == d.cols || box.br().y == d.rows;
-  };
-  for (int i = 1; i < n; ++i) {
-    const Component& r = regions[size_t(i)];
-    if (!r.strong) continue;  // never reaches the threshold: not an object
-    const cv::Rect box = r.box;
-    const int area = r.area;
-    if (area < opt.min_area_px) {
-      ++out.specks;
-      continue;
-    }
-    out.obstacle[size_t(i)] = 1;
-    // A region cut by the frame's edge is no object; but a crowd of touching objects (water_coins.jpg's 24
-    // coins, one region reaching the left and bottom edges) is split first, and only its bodies cut by the
-    // edge go (below).
-    const bool edge = at_edge(box);
-    if (edge && !opt.split_touching) {
-      ++out.border;
-      continue;
-    }
-    keep.push_back({i, box, edge});
-  }
-  const cv::Rect frame(0, 0, d.cols, d.rows);
-  auto grow = [&](cv::Rect box) {
-    return cv::Rect(box.x - opt.margin_px, box.y - opt.margin_px, box.width + 2 * opt.margin_px,
-                    box.height + 2 * opt.margin_px) & frame;
-  };
-  const bool shelf = opt.soft_shade && con.modelled;  // a captured background has its own shade model
-  for (const Cand& k : keep) {
-    Layer layer;
-    const int sg = out.sign[size_t(k.label)];
-    cv::Rect kbox = k.box;
-    const int table = local_table(con, out.labels, k.label, sg, low, kbox);
-    make_layer(con, out.labels, k.label, sg, grow(kbox), out.threshold, layer, shelf, table);
-    const bool edge = k.edge && inside_at_edge(layer, d.size());
-    // Near objects joined by their blurred edges at the low threshold come apart at the half level:
-    // each piece big enough becomes an object of its own, with a new label.
-    int big = 0;
-    for (const auto& p : layer.pieces) big += p.first >= opt.min_area_px;
-    if (edge && big > 1) {  // apart at the half level: cut by the edge as a whole, as before
-      ++out.border;
-      continue;
-    }
-    if (big <= 1) {
-      if (cv::countNonZero(layer.inside) < opt.min_area_px) {
-        ++out.specks;
-        continue;
-      }
-      layer.pieces.clear();
-      cv::Mat parts;
-      SplitOptions so = opt.split;
-      so.min_area_px = opt.min_area_px;
-      // Cut by the edge, the region's specks (outlines under the speck size: a fleck on water_coins.jpg's
-      // scan beside its crowd of coins) are left out of the split, which takes one outline only.
-      cv::Mat whole = layer.inside;
-      if (edge) {
-        std::vector<std::vector<cv::Point>> outlines;
-        cv::findContours(layer.inside, outlines, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
-        whole = layer.inside.clone();
-        for (size_t i = 0; i < outlines.size(); ++i)
-          if (cv::contourArea(outlines[i]) < opt.min_area_px)
-            cv::drawContours(whole, outlines, int(i), cv::Scalar(0), cv::FILLED);
-      }
-      int bodies = opt.split_touching ? split_touching(whole, so, parts) : 1;
-      if (bodies > 1) {
-        // Bodies of different contrast are cut where the contrast changes (a dark sweet before a red one).
-        cv::Mat contrast(layer.roi.size(), CV_8U);
-        const cv::Mat g = con.gray(layer.roi), bg = con.background(layer.roi);
-        for (int y = 0; y < contrast.rows; ++y)
-          contrast_row(g.ptr<uchar>(y), bg.ptr<uchar>(y), sg, table, contrast.cols, contrast.ptr<uchar>(y));
-        cut_between_levels(contrast, con.noise_sigma, bodies, parts);
-      }
-      // Cut by the edge, a crowd (three bodies or more) is kept apart; one body and its neighbour may be an
-      // object and its own shadow running off the frame (the shadow-strong scenes: kept, both came out
-      // misshapen), dropped whole as before.
-      if (bodies <= 1 || (edge && bodies < 3)) {
-        if (edge) ++out.border;
-        else out.layers.push_back(std::move(layer));
-        continue;
-      }
-      // Touching objects: each body gets a label of its own; the soft edge band around the bodies (the
-      // component's pixels outside the half level) goes to the nearest body.
-      cv::Mat lab = out.labels(layer.roi), own = lab == k.label, p16;
-      parts.convertTo(p16, CV_16U);
-      for (int i = 0; i < opt.margin_px + 2; ++i) {
-        cv::Mat grown;
-        cv::dilate(p16, grown, cv::Mat());
-        grown.copyTo(p16, (p16 == 0) & own);
-      }
-      for (int b = 1; b <= bodies; ++b) {
-        int id = int(out.obstacle.size());
-        out.obstacle.push_back(1);
-        out.sign.push_back(int8_t(sg));
-        cv::Mat body = (p16 == b) & own;
-        lab.setTo(id, body);
-        cv::Rect box = cv::boundingRect(body) + layer.roi.tl();
-        Layer piece;
-        make_layer(con, out.labels, id, sg, grow(box), out.threshold, piece, shelf, table);
-        piece.pieces.clear();
-        piece.touching = true;
-        if (edge && inside_at_edge(piece, d.size())) ++out.border;
-        else if (cv::countNonZero(piece.inside) >= opt.min_area_px) out.layers.push_back(std::move(piece));
-      }
-      continue;
-    }
-    std::vector<Layer> pieces;
-    for (const auto& p : layer.pieces) {
-      if (p.first < opt.min_area_px) continue;
-      int id = int(out.obstacle.size());
-      out.obstacle.push_back(1);
-      out.sign.push_back(int8_t(sg));
-      cv::Mat mask(layer.roi.size(), CV_8U, cv::Scalar(0));
-      cv::drawContours(mask, std::vector<std::vector<cv::Point>>{p.second}, 0, cv::Scalar(255), cv::FILLED);
-      cv::Mat lab = out.labels(layer.roi);
-      lab.setTo(id, mask & (lab == k.label));
-      cv::Rect box = cv::boundingRect(p.second) + layer.roi.tl();
-      Layer piece;
-      make_layer(con, out.labels, id, sg, grow(box), out.threshold, piece, shelf, table);
-      piece.pieces.clear();
-      if (cv::countNonZero(piece.inside) >= opt.min_area_px) pieces.push_back(std::move(piece));
-    }
-    // A piece far fainter and smaller than another piece of its region is that object's soft shadow (the
-    // shade between two sweets joins them at the low threshold), not an object nor an obstacle.
-    std::vector<char> shade(pieces.size(), 0);
-    for (size_t i = 0; i < pieces.size(); ++i)
-      for (const Layer& other : pieces)
-        shade[i] = shade[i] || (other.level >= opt.fringe_ratio * pieces[i].level &&
-                                cv::countNonZero(pieces[i].inside) <= 0.25 * cv::countNonZero(other.inside));
-    for (size_t i = 0; i < pieces.size(); ++i) {
-      if (shade[i]) {
-        ++out.fringes;
-        out.obstacle[size_t(pieces[i].label)] = 0;
-      } else {
-        out.layers.push_back(std::move(pieces[i]));
-      }
-    }
-  }
+  RegionPass pass(con, opt, out);
+  for (const Candidate& k : candidates(regions, opt, con.gray.size(), out)) pass.run(k);
   drop_fringes(con, opt, out);
   // Detection order: by rows of the top edge, then left to right (split pieces included).
   std::stable_sort(out.layers.begin(), out.layers.end(), [](const Layer& a, const Layer& b) {
