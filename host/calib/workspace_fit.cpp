@@ -69,12 +69,12 @@ cv::Point2d apply_map(const cv::Matx33d& h, cv::Point2d p) {
   return {v[0] / v[2], v[1] / v[2]};
 }
 
-bool fit_workspace(const std::vector<WorkspacePoint>& points, int min_points, WorkspaceFit& out, std::string& code,
+bool fit_workspace(const std::vector<WorkspacePoint>& points, int min_points, WorkspaceFit& out, FitRefusal& why,
                    std::string& error) {
   const int n = int(points.size());
   min_points = std::max(min_points, 4);
   if (n < min_points) {
-    code = "too_few_markers";
+    why = FitRefusal::TooFewMarkers;
     error = std::to_string(n) + " marker" + (n == 1 ? "" : "s") + " recorded; at least " + std::to_string(min_points) +
             " are needed, spread over the view (not on one line)";
     return false;
@@ -83,7 +83,7 @@ bool fit_workspace(const std::vector<WorkspacePoint>& points, int min_points, Wo
   std::vector<cv::Point2d> px, mm;
   for (const auto& p : points) {
     if (!ids.insert(p.id).second) {
-      code = "duplicate_marker";
+      why = FitRefusal::DuplicateMarker;
       error = "marker " + std::to_string(p.id) + " recorded twice";
       return false;
     }
@@ -94,7 +94,7 @@ bool fit_workspace(const std::vector<WorkspacePoint>& points, int min_points, Wo
   constexpr double kMinSpread = 0.1;
   double sp = spread_ratio(px), sm = spread_ratio(mm);
   if (sp < kMinSpread || sm < kMinSpread) {
-    code = "degenerate";
+    why = FitRefusal::Degenerate;
     char buf[200];
     std::snprintf(buf, sizeof buf,
                   "the markers are (nearly) collinear (spread %.3f in the image, %.3f on the table; needs %.1f): "
@@ -107,7 +107,7 @@ bool fit_workspace(const std::vector<WorkspacePoint>& points, int min_points, Wo
   WorkspaceFit f;
   f.model = homography ? "homography" : "affine";
   if (!fit_model(homography, px, mm, f.h)) {
-    code = "degenerate";
+    why = FitRefusal::Degenerate;
     error = "the markers do not determine a map (three or more on one line?)";
     return false;
   }
@@ -133,7 +133,7 @@ bool fit_workspace(const std::vector<WorkspacePoint>& points, int min_points, Wo
     f.max_loo_mm = std::max(f.max_loo_mm, e);
   }
   if (!std::isfinite(f.rms_mm)) {
-    code = "degenerate";
+    why = FitRefusal::Degenerate;
     error = "the fit is not finite";
     return false;
   }

@@ -28,9 +28,10 @@ struct WorkspaceFit {
 // Least squares over all points, no RANSAC: with a handful of hand-recorded points an outlier must be shown (its
 // leave-one-out error) and re-recorded, not silently dropped. Homography for >= 5 points (a camera a few degrees
 // off vertical sees the table in perspective); with exactly 4 an affine map, the only model that then still has
-// residuals to check. Refuses (code, error): "too_few_markers" (< min_points, < 4), "duplicate_marker",
-// "degenerate" (collinear or coincident points, in the image or on the table).
-bool fit_workspace(const std::vector<WorkspacePoint>& points, int min_points, WorkspaceFit& out, std::string& code,
+// residuals to check. Refuses (why, error): TooFewMarkers (< min_points, < 4), DuplicateMarker, Degenerate (collinear
+// or coincident points, in the image or on the table); the daemon names them with its error codes.
+enum class FitRefusal { TooFewMarkers, DuplicateMarker, Degenerate };
+bool fit_workspace(const std::vector<WorkspacePoint>& points, int min_points, WorkspaceFit& out, FitRefusal& why,
                    std::string& error);
 
 cv::Point2d apply_map(const cv::Matx33d& h, cv::Point2d px);

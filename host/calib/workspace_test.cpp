@@ -136,7 +136,8 @@ TEST(MarkerDetect, CentreIsTheDiagonalsIntersectionUnderPerspective) {
 TEST(WorkspaceFit, RecoversAPerspectiveMapExactly) {
   cv::Matx33d h = truth_h();
   WorkspaceFit f;
-  std::string code, error;
+  FitRefusal code{};
+  std::string error;
   ASSERT_TRUE(fit_workspace(grid_points(h, 8), 4, f, code, error)) << error;
   EXPECT_EQ(f.model, "homography");
   // Exact up to the solver's tolerance: nanometres.
@@ -153,7 +154,8 @@ TEST(WorkspaceFit, NoiseShowsInRmsAndAnOutlierInItsLeaveOneOut) {
   std::normal_distribution<double> noise(0.0, 0.1);
   for (auto& p : pts) p.mm += cv::Point2d(noise(rng), noise(rng));
   WorkspaceFit f;
-  std::string code, error;
+  FitRefusal code{};
+  std::string error;
   ASSERT_TRUE(fit_workspace(pts, 4, f, code, error)) << error;
   EXPECT_GT(f.rms_mm, 0.02);
   EXPECT_LT(f.rms_mm, 0.2);
@@ -167,7 +169,8 @@ TEST(WorkspaceFit, NoiseShowsInRmsAndAnOutlierInItsLeaveOneOut) {
 TEST(WorkspaceFit, FourPointsFitAnAffineMap) {
   cv::Matx33d a(0.0, -0.25, 370.0, -0.25, 0.0, 100.0, 0, 0, 1);
   WorkspaceFit f;
-  std::string code, error;
+  FitRefusal code{};
+  std::string error;
   ASSERT_TRUE(fit_workspace(grid_points(a, 4), 4, f, code, error)) << error;
   EXPECT_EQ(f.model, "affine");
   EXPECT_LT(f.rms_mm, 1e-9);
@@ -177,11 +180,12 @@ TEST(WorkspaceFit, FourPointsFitAnAffineMap) {
 TEST(WorkspaceFit, RefusesTooFewCollinearAndDuplicateMarkers) {
   cv::Matx33d h = truth_h();
   WorkspaceFit f;
-  std::string code, error;
+  FitRefusal code{};
+  std::string error;
   EXPECT_FALSE(fit_workspace(grid_points(h, 3), 4, f, code, error));
-  EXPECT_EQ(code, "too_few_markers");
+  EXPECT_EQ(code, FitRefusal::TooFewMarkers);
   EXPECT_FALSE(fit_workspace(grid_points(h, 5), 6, f, code, error));
-  EXPECT_EQ(code, "too_few_markers");
+  EXPECT_EQ(code, FitRefusal::TooFewMarkers);
   EXPECT_NE(error.find("at least 6"), std::string::npos) << error;
   std::vector<WorkspacePoint> line;
   for (int i = 0; i < 6; ++i) {
@@ -189,19 +193,20 @@ TEST(WorkspaceFit, RefusesTooFewCollinearAndDuplicateMarkers) {
     line.push_back({i, px, apply_map(h, px)});
   }
   EXPECT_FALSE(fit_workspace(line, 4, f, code, error));
-  EXPECT_EQ(code, "degenerate");
+  EXPECT_EQ(code, FitRefusal::Degenerate);
   EXPECT_NE(error.find("collinear"), std::string::npos) << error;
   auto dup = grid_points(h, 6);
   dup[3].id = 1;
   EXPECT_FALSE(fit_workspace(dup, 4, f, code, error));
-  EXPECT_EQ(code, "duplicate_marker");
+  EXPECT_EQ(code, FitRefusal::DuplicateMarker);
 }
 
 TEST(WorkspaceFile, RoundTripAndCorruptFilesRejected) {
   fs::path dir = temp_dir();
   WorkspaceCalibration c;
   c.points = grid_points(truth_h(), 6);
-  std::string code, error;
+  FitRefusal code{};
+  std::string error;
   ASSERT_TRUE(fit_workspace(c.points, 4, c.fit, code, error));
   c.image_size = {800, 600};
   c.table_z_mm = -1.25;

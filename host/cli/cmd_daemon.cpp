@@ -14,6 +14,7 @@
 #include "error_codes.hpp"
 #include "commands.hpp"
 #include "control_client.hpp"
+#include "job_progress.hpp"
 
 namespace rbx1::cli {
 
@@ -79,12 +80,15 @@ void print_event(const nlohmann::json& ev) {
   std::fflush(stdout);
 }
 
+constexpr int kProgressTickMs = 200;  // the progress line's elapsed time, redrawn while no event comes
+
 // A job's sent/step/step_done lines folded into one line per phase ("moved  approach  49 segments  1.21 s"), for
 // people; --verbose (and --json) keep every line.
 bool verbose_steps = false;
 
 class PhaseFold {
  public:
+  explicit PhaseFold(ProgressLine& progress) : progress_(progress) {}
   // True when ev was folded (nothing to print for it now); prints the finished phase first when one ends.
   bool add(const nlohmann::json& ev) {
     std::string e = ev.value("event", "");
@@ -107,6 +111,7 @@ class PhaseFold {
   }
   void flush() {
     if (name_.empty()) return;
+    progress_.clear();
     std::printf("%8.3f s  %-14s  %-10s %3d %-8s %6.2f s\n", t1_, "moved", name_.c_str(), count_,
                 count_ == 1 ? "segment" : "segments", t1_ - t0_);
     std::fflush(stdout);
@@ -114,6 +119,7 @@ class PhaseFold {
   }
 
  private:
+  ProgressLine& progress_;
   std::string name_;
   int count_ = 0;
   double t0_ = 0, t1_ = 0;
@@ -155,13 +161,22 @@ int run_daemon_request(const std::string& socket, bool json, const daemon::Reque
   double timeout_s = o.timeout_s >= 0 ? o.timeout_s : default_timeout_s(request.command);
   auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   std::string line;
-  PhaseFold phases;
+  // A job on a terminal, for people: its progress line, ticking while the job is silent.
+  ProgressLine progress(!o.json && !verbose_steps && daemon::command_spec(request.command).mode == daemon::Mode::Job,
+                        daemon::command_name(request.command));
+  PhaseFold phases(progress);
   for (;;) {
     int wait_ms = -1;
     if (timeout_s > 0)
       wait_ms = int(std::max<int64_t>(0, std::chrono::duration_cast<std::chrono::milliseconds>(
                                               deadline - std::chrono::steady_clock::now()).count()));
-    int r = client.read_line(line, wait_ms);
+    const bool tick = progress.on() && (wait_ms < 0 || wait_ms > kProgressTickMs);
+    int r = client.read_line(line, tick ? kProgressTickMs : wait_ms);
+    if (r == -ETIMEDOUT && tick) {
+      progress.draw();
+      continue;
+    }
+    if (r < 0) progress.clear();  // every last word goes on a clean line
     if (r == -ETIMEDOUT) {
       std::fprintf(stderr, "rbx1: %s: no reply within %g s (--timeout)\n", o.socket.c_str(), timeout_s);
       return 2;
@@ -176,10 +191,11 @@ int run_daemon_request(const std::string& socket, bool json, const daemon::Reque
     }
     nlohmann::json ev = nlohmann::json::parse(line, nullptr, false);
     if (ev.is_discarded() || !ev.is_object()) {
+      progress.clear();
       std::fprintf(stderr, "rbx1: unreadable reply line from rbx1d: %s\n", line.substr(0, 200).c_str());
       return 2;
     }
-    if (ev.contains("error") || ev.contains("result")) phases.flush();
+    if (ev.contains("error") || ev.contains("result")) phases.flush(), progress.clear();
     if (ev.contains("error")) {
       const auto& e = ev["error"];
       std::string code = e.value("code", "error");
@@ -191,7 +207,8 @@ int run_daemon_request(const std::string& socket, bool json, const daemon::Reque
       if (!o.json && print_final) print_result(ev["result"]);
       return 0;
     }
-    if (!o.json && !phases.add(ev)) print_event(ev);
+    if (!o.json && !phases.add(ev)) progress.clear(), print_event(ev);
+    progress.add(ev);
   }
 }
 

@@ -12,6 +12,7 @@
 #include <sstream>
 #include <mutex>
 #include <thread>
+#include <type_traits>
 
 #include <httplib.h>
 #include <spdlog/spdlog.h>
@@ -45,9 +46,12 @@ constexpr auto kEventKeepAlive = std::chrono::milliseconds(250);
 
 using json = nlohmann::json;
 
-json error_json(const std::string& code, const std::string& message) {
-  return {{"error", {{"code", code}, {"message", message}}}};
-}
+using daemon::ErrorCode;
+
+// An error body: the code from the one list (error_codes.hpp), never a string of the console's own.
+json error_json(ErrorCode code, const std::string& message) { return daemon::error_reply({code, message}); }
+static_assert(!std::is_invocable_v<decltype(&error_json), const char*, const std::string&>,
+              "a console error's code is an ErrorCode: a mistyped code must not compile");
 
 void send_json(httplib::Response& res, int status, const json& body) {
   res.status = status;
@@ -58,7 +62,7 @@ int http_status_for(const json& final_line) {
   if (final_line.contains("result")) return 200;
   std::string code = final_line["error"].value("code", "");
   if (daemon::is_request_error(code)) return 400;  // the request itself (error_codes.hpp)
-  if (code == "shutting_down") return 503;
+  if (code == daemon::code_name(ErrorCode::ShuttingDown)) return 503;
   return 409;  // the arm could not do it now (busy, not_ready, estop, object_absent, ...)
 }
 
@@ -183,23 +187,23 @@ struct Console::Impl {
     if (token_required(kind, !config.token.empty(), config.loopback)) {
       std::string given = presented_token(req.get_header_value("Authorization"), req.get_param_value("token"));
       if (given.empty()) {
-        send_json(res, 401, error_json("unauthorized", "this request needs the console token (Authorization: Bearer TOKEN)"));
+        send_json(res, 401, error_json(ErrorCode::Unauthorized, "this request needs the console token (Authorization: Bearer TOKEN)"));
         return false;
       }
       if (!token_matches(config.token, given)) {
-        send_json(res, 401, error_json("unauthorized", "wrong console token"));
+        send_json(res, 401, error_json(ErrorCode::Unauthorized, "wrong console token"));
         return false;
       }
     }
     if (req.method == "POST") {
       // A JSON body and a same-origin page: another site's form or script cannot drive the arm through a browser.
       if (req.get_header_value("Content-Type").rfind("application/json", 0) != 0) {
-        send_json(res, 415, error_json("bad_request", "the body must be JSON (Content-Type: application/json)"));
+        send_json(res, 415, error_json(ErrorCode::BadRequest, "the body must be JSON (Content-Type: application/json)"));
         return false;
       }
       std::string origin = req.get_header_value("Origin");
       if (!origin.empty() && origin != "http://" + req.get_header_value("Host")) {
-        send_json(res, 403, error_json("bad_origin", "requests from another site's page (" + origin.substr(0, 80) + ") are refused"));
+        send_json(res, 403, error_json(ErrorCode::BadOrigin, "requests from another site's page (" + origin.substr(0, 80) + ") are refused"));
         return false;
       }
     }
@@ -211,16 +215,16 @@ struct Console::Impl {
     daemon::Request request;
     daemon::Error err;
     if (!daemon::parse_request(line, request, err)) {
-      send_json(res, 400, error_json(err.code, err.message));
+      send_json(res, 400, daemon::error_reply(err));
       return;
     }
     const daemon::CommandSpec& spec = daemon::command_spec(request.command);
     if (spec.access == daemon::Access::Local) {
-      send_json(res, 403, error_json("not_allowed", std::string(spec.name) + " is not available from the console (the Unix socket only)"));
+      send_json(res, 403, error_json(ErrorCode::NotAllowed, std::string(spec.name) + " is not available from the console (the Unix socket only)"));
       return;
     }
     if (request.command == daemon::Command::Subscribe) {
-      send_json(res, 400, error_json("bad_request", std::string(spec.name) + ": use GET /api/events for the bus"));
+      send_json(res, 400, error_json(ErrorCode::BadRequest, std::string(spec.name) + ": use GET /api/events for the bus"));
       return;
     }
     if (spec.access != daemon::Access::Read) spdlog::info("console: request {}", daemon::request_json(request).dump());
@@ -296,7 +300,7 @@ struct Console::Impl {
       return;
     }
     if (!ex->cv.wait_until(lock, deadline, [&] { return ex->done; })) {
-      send_json(res, 504, error_json("timeout", "no final reply within " + std::to_string(int(job_timeout_s + 30)) +
+      send_json(res, 504, error_json(ErrorCode::Timeout, "no final reply within " + std::to_string(int(job_timeout_s + 30)) +
                                                     " s; the job goes on (see the event log)"));
       return;
     }
@@ -314,11 +318,11 @@ struct Console::Impl {
     if (r.value("format", "") != "csv") return run_request(r.dump(), res);
     daemon::Request request;
     daemon::Error err;
-    if (!daemon::parse_request(r.dump(), request, err)) return send_json(res, 400, error_json(err.code, err.message));
+    if (!daemon::parse_request(r.dump(), request, err)) return send_json(res, 400, daemon::error_reply(err));
     auto q = daemon::submit(submit, request);
     std::vector<json> events;
     json final;
-    if (!q->wait_final(events, final, 10000)) return send_json(res, 504, error_json("timeout", "no history within 10 s"));
+    if (!q->wait_final(events, final, 10000)) return send_json(res, 504, error_json(ErrorCode::Timeout, "no history within 10 s"));
     if (!final.contains("result")) return send_json(res, http_status_for(final), final);
     res.set_content(final["result"].value("csv", ""), "text/csv");
   }
@@ -332,13 +336,13 @@ struct Console::Impl {
         what = e.what();
       } catch (...) {
       }
-      send_json(res, 500, error_json("internal", what));
+      send_json(res, 500, error_json(ErrorCode::Internal, what));
     });
     http.set_error_handler(httplib::Server::HandlerWithResponse([](const httplib::Request& req, httplib::Response& res) {
       if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
-      if (res.status == 404) send_json(res, 404, error_json("not_found", "no such page or endpoint: " + req.path.substr(0, 80)));
-      else if (res.status == 413) send_json(res, 413, error_json("line_too_long", "request body longer than " + std::to_string(daemon::kMaxRequestLine) + " bytes"));
-      else send_json(res, res.status, error_json("bad_request", "HTTP " + std::to_string(res.status)));
+      if (res.status == 404) send_json(res, 404, error_json(ErrorCode::NotFound, "no such page or endpoint: " + req.path.substr(0, 80)));
+      else if (res.status == 413) send_json(res, 413, error_json(ErrorCode::LineTooLong, "request body longer than " + std::to_string(daemon::kMaxRequestLine) + " bytes"));
+      else send_json(res, res.status, error_json(ErrorCode::BadRequest, "HTTP " + std::to_string(res.status)));
       return httplib::Server::HandlerResponse::Handled;
     }));
 
@@ -361,9 +365,9 @@ struct Console::Impl {
       std::string cmd = req.matches[1];
       if (!allowed(req, res, kind_of(cmd))) return;
       json body = req.body.empty() ? json::object() : json::parse(req.body, nullptr, false);
-      if (body.is_discarded()) return send_json(res, 400, error_json("bad_json", "request body is not valid JSON"));
-      if (!body.is_object()) return send_json(res, 400, error_json("bad_request", "request body must be a JSON object"));
-      if (body.contains("cmd")) return send_json(res, 400, error_json("bad_field", "\"cmd\" comes from the URL, not the body"));
+      if (body.is_discarded()) return send_json(res, 400, error_json(ErrorCode::BadJson, "request body is not valid JSON"));
+      if (!body.is_object()) return send_json(res, 400, error_json(ErrorCode::BadRequest, "request body must be a JSON object"));
+      if (body.contains("cmd")) return send_json(res, 400, error_json(ErrorCode::BadField, "\"cmd\" comes from the URL, not the body"));
       body["cmd"] = cmd;
       run_request(body.dump(), res, req.get_header_value("X-RBX1-Page"));
     });
@@ -375,7 +379,7 @@ struct Console::Impl {
       http.Get(lib.url, [&lib](const httplib::Request&, httplib::Response& res) {
         std::string js = read_file(lib.path);  // the page caches it a day
         if (js.empty())
-          return send_json(res, 404, error_json("not_found", std::string(lib.path) + ": missing (apt install " + lib.package + ")"));
+          return send_json(res, 404, error_json(ErrorCode::NotFound, std::string(lib.path) + ": missing (apt install " + lib.package + ")"));
         res.set_header("Cache-Control", "max-age=86400");
         res.set_content(js, "text/javascript; charset=utf-8");
       });
@@ -387,7 +391,7 @@ struct Console::Impl {
     http.Get(R"(/api/history/scan/(\d{1,18})\.jpg)", [this](const httplib::Request& req, httplib::Response& res) {
       if (!allowed(req, res, Kind::Read)) return;
       std::string jpeg = scans_dir.empty() ? "" : read_file((scans_dir + "/" + std::string(req.matches[1]) + ".jpg").c_str());
-      if (jpeg.empty()) return send_json(res, 404, error_json("no_image", "no image kept for this scan ([history] max_mb)"));
+      if (jpeg.empty()) return send_json(res, 404, error_json(ErrorCode::NoImage, "no image kept for this scan ([history] max_mb)"));
       res.set_content(jpeg, "image/jpeg");
     });
     // The jobs' history (rbx1 history): JSON, or the picks as CSV with ?format=csv.
@@ -403,18 +407,18 @@ struct Console::Impl {
       res.set_header("Cache-Control", "no-store");
       if (req.matches[1] == "png") {
         std::string png;
-        if (!live.scan_png(png)) return send_json(res, 404, error_json("no_scan", "no scan yet: run a scan first"));
+        if (!live.scan_png(png)) return send_json(res, 404, error_json(ErrorCode::NoScan, "no scan yet: run a scan first"));
         return res.set_content(png, "image/png");
       }
       Jpeg jpeg;
-      if (!live.scan_jpeg(jpeg)) return send_json(res, 404, error_json("no_scan", "no scan yet: run a scan first"));
+      if (!live.scan_jpeg(jpeg)) return send_json(res, 404, error_json(ErrorCode::NoScan, "no scan yet: run a scan first"));
       res.set_content(*jpeg, "image/jpeg");
     });
     http.Get("/api/frame.jpg", [this](const httplib::Request& req, httplib::Response& res) {
       if (!allowed(req, res, Kind::Read)) return;
       Jpeg jpeg;
       std::string error;
-      if (!live.grab_once(jpeg, error)) return send_json(res, 503, error_json("camera_failed", error));
+      if (!live.grab_once(jpeg, error)) return send_json(res, 503, error_json(ErrorCode::CameraFailed, error));
       res.set_header("Cache-Control", "no-store");
       res.set_content(*jpeg, "image/jpeg");
     });
@@ -428,7 +432,7 @@ struct Console::Impl {
     http.Get("/api/live.mjpg", [this](const httplib::Request& req, httplib::Response& res) {
       if (!allowed(req, res, Kind::Read)) return;
       auto slot = std::make_shared<StreamSlot>(streams);
-      if (!slot->ok()) return send_json(res, 503, error_json("too_many_streams", "too many live views and event streams open"));
+      if (!slot->ok()) return send_json(res, 503, error_json(ErrorCode::TooManyStreams, "too many live views and event streams open"));
       auto viewer = std::make_shared<LiveView::Viewer>(live);
       res.set_header("Cache-Control", "no-store");
       res.set_chunked_content_provider(
@@ -451,7 +455,7 @@ struct Console::Impl {
     http.Get("/api/events", [this](const httplib::Request& req, httplib::Response& res) {
       if (!allowed(req, res, Kind::Read)) return;
       auto slot = std::make_shared<StreamSlot>(streams);
-      if (!slot->ok()) return send_json(res, 503, error_json("too_many_streams", "too many live views and event streams open"));
+      if (!slot->ok()) return send_json(res, 503, error_json(ErrorCode::TooManyStreams, "too many live views and event streams open"));
       uint64_t after = 0;
       std::string last = req.get_header_value("Last-Event-ID");
       if (last.empty()) last = req.get_param_value("after");

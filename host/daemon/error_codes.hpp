@@ -23,6 +23,7 @@ enum class ErrorClass { Request, Job, Access };
   X(BadField, "bad_field", Request, "a field has the wrong type or is out of range, or is unknown")               \
   X(LineTooLong, "line_too_long", Request, "the request line is longer than 4096 bytes")                          \
   X(TooLarge, "too_large", Request, "an MQTT command larger than the interface takes")                            \
+  X(Stale, "stale", Request, "an MQTT command retained, older than [mqtt] max_age_s, or undated just after a reconnect") \
   X(Busy, "busy", Job, "another job is running (or too many subscribers)")                                        \
   X(NotReady, "not_ready", Job, "the link is down, the arm is not homed, or a fault waits for clear_fault")        \
   X(ShuttingDown, "shutting_down", Job, "rbx1d is stopping")                                                      \
@@ -45,6 +46,8 @@ enum class ErrorClass { Request, Job, Access };
   X(FirmwareReset, "firmware_reset", Job, "the firmware restarted mid-job and lost its positions")                \
   X(Stopped, "stopped", Job, "motion was stopped by someone else")                                                \
   X(Shutdown, "shutdown", Job, "the job was aborted because rbx1d stopped")                                       \
+  X(Aborted, "aborted", Job, "the job was aborted by the daemon for a reason without a code of its own")       \
+  X(ClientGone, "client_gone", Job, "the client of a jog went away mid-move: the arm stopped (the dead-man rule)") \
   X(StateFailed, "state_failed", Job, "a file of the state directory could not be written")                       \
   X(BadPose, "bad_pose", Job, "the pose cannot be saved (unreachable or unknown)")                                \
   X(NoScan, "no_scan", Job, "teach needs a scan first")                                                           \

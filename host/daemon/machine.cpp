@@ -517,7 +517,7 @@ void Machine::worker() {
       running_ = job.request;
       running_reply_ = job.reply;
       abort_ = false;
-      abort_reason_ = "aborted";
+      abort_reason_ = code_name(ErrorCode::Aborted);
       lock.unlock();
       run_job(job);
       lock.lock();
@@ -665,7 +665,7 @@ bool Machine::capture_and_detect(Reply& reply, vision::Scan& scan, std::string* 
   vision::Detection det;
   cv::Mat processed;
   if (!vision_->run(frame, det, processed, error)) {
-    reply.error("vision_failed", error);
+    reply.error(ErrorCode::VisionFailed, error);
     return false;
   }
   scan = vision_->scan(det);
@@ -795,7 +795,7 @@ void Machine::job_pick(Reply& reply, const std::string& name, const std::string&
   if (!config_.arm.places.count(place)) {
     std::string known;
     for (const auto& [k, v] : config_.arm.places) known += (known.empty() ? "" : ", ") + k;
-    reply.error("unknown_place", "no place \"" + place + "\" in [arm] places (known: " + known + ")");
+    reply.error(ErrorCode::UnknownPlace, "no place \"" + place + "\" in [arm] places (known: " + known + ")");
     return;
   }
   if (!ready(reply)) return;
@@ -829,7 +829,7 @@ void Machine::job_pick(Reply& reply, const std::string& name, const std::string&
   if (!plan_pick(scan, *best, place, steps, plan_info, error)) {
     reply.event("unreachable", {{"name", name}, {"reason", error}});
     if (!move_to(reply, "home", config_.arm.home)) return;
-    reply.error("plan_failed", "cannot pick \"" + name + "\": " + error);
+    reply.error(ErrorCode::PlanFailed, "cannot pick \"" + name + "\": " + error);
     return;
   }
   plan_info["steps"] = steps.size();

@@ -192,7 +192,7 @@ class Machine {
   std::atomic<bool> abort_{false};
   std::function<void()> on_shutdown_;
   ScanHook on_scan_;
-  std::string abort_reason_ = "aborted";
+  std::string abort_reason_ = code_name(ErrorCode::Aborted);
   std::atomic<int64_t> job_deadline_ns_{0};  // steady clock; a job running past it is aborted ("timeout")
 };
 

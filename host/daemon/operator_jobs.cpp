@@ -122,11 +122,11 @@ void Machine::job_jog(Reply& reply, const Request& r) {
   auto base_aborted = h.aborted;
   auto base_reason = h.abort_reason;
   h.aborted = [base_aborted, &reply] { return base_aborted() || reply.client_gone(); };
-  h.abort_reason = [base_aborted, base_reason] { return base_aborted() ? base_reason() : std::string("client_gone"); };
+  h.abort_reason = [base_aborted, base_reason] { return base_aborted() ? base_reason() : std::string(code_name(ErrorCode::ClientGone)); };
   Motion motion(link_, {config_.daemon.status_poll_ms, config_.daemon.move_timeout_s, config_.daemon.reconnect_timeout_s});
   MotionResult result = motion.run(steps, h);
   if (!result.ok) {
-    if (result.code == "client_gone") {
+    if (result.failed_with(ErrorCode::ClientGone)) {
       rbx1_stop_resp sr{};
       int rs = link_.stop(sr);
       spdlog::warn("jog: the client went away mid-move: STOP sent ({})", rs < 0 ? link::error_text(rs) : "acknowledged");

@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -59,6 +60,7 @@ struct Error {
   std::string code;
   std::string message;
 };
+static_assert(!std::is_constructible_v<Error, const char*, std::string>, "an Error's code is an ErrorCode, never a string");
 
 const char* command_name(Command c);
 // One request line (without its newline) -> Request, or an Error (bad_json, bad_request, unknown_command,

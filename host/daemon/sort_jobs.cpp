@@ -412,7 +412,7 @@ bool Machine::handle_jobs_request(const Request& request, Reply& reply) {
       std::string error;
       RecipeBook recipes(config_.daemon.state_dir);
       if (!recipes.load(book, error) || !recipe_names(places, classes, false, error)) {
-        reply.error("state_failed", error);
+        reply.error(ErrorCode::StateFailed, error);
         return true;
       }
       json saved = json::object();

@@ -71,6 +71,16 @@ TableHeight table_height(const WorkspaceSession& s) {
   return {z_sum / double(s.touched.size()), z_hi - z_lo};
 }
 
+// The fit's refusal as the error list names it.
+ErrorCode fit_error(calib::FitRefusal why) {
+  switch (why) {
+    case calib::FitRefusal::TooFewMarkers: return ErrorCode::TooFewMarkers;
+    case calib::FitRefusal::DuplicateMarker: return ErrorCode::DuplicateMarker;
+    case calib::FitRefusal::Degenerate: return ErrorCode::Degenerate;
+  }
+  return ErrorCode::Internal;
+}
+
 nlohmann::json finite_or_null(double v) { return std::isfinite(v) ? nlohmann::json(round3(v)) : nlohmann::json(nullptr); }
 
 // The fit's figures: per recorded marker its residual and leave-one-out error, and where the map puts every marker
@@ -190,10 +200,11 @@ void Machine::workspace_fit(Reply& reply, bool save) {
   // The least-squares map over the recorded markers.
   WorkspaceSession& s = *workspace_;
   calib::WorkspaceFit fit;
-  std::string code, error;
+  calib::FitRefusal why{};
+  std::string error;
   auto points = recorded_points(s);
-  if (!calib::fit_workspace(points, config_.op.min_markers, fit, code, error)) {
-    reply.error(code, error + "; the old calibration stays");
+  if (!calib::fit_workspace(points, config_.op.min_markers, fit, why, error)) {
+    reply.error(fit_error(why), error + "; the old calibration stays");
     return;
   }
   std::string reason = rejection(fit, config_.op);

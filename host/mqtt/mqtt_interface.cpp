@@ -211,7 +211,7 @@ void MqttInterface::run(std::string_view payload, bool retained, Destination to)
   ++commands_;
   Incoming in;
   daemon::Error err;
-  if (!decode_command(payload, in, err)) return refuse(to, err.code, err.message);
+  if (!decode_command(payload, in, err)) return refuse(to, err);
   to.id = in.id;
   // Who may call what comes from the command table: a stop is never stale and never a repeat (stopping again is
   // always safe, and it must not wait); socket-only commands and the socket's own subscribe are refused.
@@ -221,11 +221,11 @@ void MqttInterface::run(std::string_view payload, bool retained, Destination to)
   if (!stop) {
     bool just_connected = steady_s() - connected_at_s_ < kReconnectGraceS;
     if (auto why = stale_reason(in, retained, wall_s(), config_.max_age_s, just_connected); !why.empty())
-      return refuse(to, "stale", why);
+      return refuse(to, {daemon::ErrorCode::Stale, why});
     if (spec && spec->access == daemon::Access::Local)
-      return refuse(to, "not_allowed", in.cmd + " is not taken over MQTT (the control socket or systemctl stop rbx1d)");
+      return refuse(to, {daemon::ErrorCode::NotAllowed, in.cmd + " is not taken over MQTT (the control socket or systemctl stop rbx1d)"});
     if (spec && spec->command == daemon::Command::Subscribe)
-      return refuse(to, "not_allowed", "the bus is already on " + config_.prefix + "/state, /event, /scan and /pick");
+      return refuse(to, {daemon::ErrorCode::NotAllowed, "the bus is already on " + config_.prefix + "/state, /event, /scan and /pick"});
     if (!in.id.is_null()) {
       key = in.id.dump();
       std::string first;
@@ -246,12 +246,9 @@ void MqttInterface::run(std::string_view payload, bool retained, Destination to)
   });
 }
 
-void MqttInterface::refuse(const Destination& to, const std::string& code, const std::string& message) {
+void MqttInterface::refuse(const Destination& to, const daemon::Error& e) {
   ++refused_;
-  spdlog::info("mqtt: command refused: {}: {}", code, message);
-  daemon::Error e;
-  e.code = code;
-  e.message = message;
+  spdlog::info("mqtt: command refused: {}: {}", e.code, e.message);
   reply(to, with_id(daemon::error_reply(e).dump(), to.id));
 }
 
@@ -357,7 +354,7 @@ void MqttInterface::sort_pressed(const mosquitto_message* msg) {
   Destination to{topic("cmd/response"), "", nullptr};
   if (name.empty()) {
     ++commands_;
-    return refuse(to, "unknown_recipe", "no recipe is chosen: choose one in the recipe select, then press Sort");
+    return refuse(to, {daemon::ErrorCode::UnknownRecipe, "no recipe is chosen: choose one in the recipe select, then press Sort"});
   }
   // The same rules as a request on cmd: a retained press, or one right after a reconnect, is stale.
   run(nlohmann::json{{"cmd", "sort"}, {"recipe", name}}.dump(), msg->retain, std::move(to));

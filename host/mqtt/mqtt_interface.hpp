@@ -66,7 +66,8 @@ class MqttInterface {
   // One request's payload through the envelope rules (stale, retained, at most once) to the handler.
   void run(std::string_view payload, bool retained, Destination to);
   void reply(const Destination& to, const std::string& final_line);
-  void refuse(const Destination& to, const std::string& code, const std::string& message);
+  // A refusal before the handler; its code from the one list (daemon::Error is built from an ErrorCode only).
+  void refuse(const Destination& to, const daemon::Error& e);
   // droppable: an event or scan, dropped (counted) when disconnected or when max_queued are waiting.
   bool publish(const std::string& topic, const std::string& payload, int qos, bool retain, bool droppable,
                const mosquitto_property* props = nullptr);

@@ -272,6 +272,11 @@ class TooLarge(RequestError):
     code = "too_large"
 
 
+class Stale(RequestError):
+    """A command over MQTT that was retained, older than [mqtt] max_age_s, or undated just after a reconnect."""
+    code = "stale"
+
+
 # ---- the client's own ------------------------------------------------------------------------------------------
 
 class NoReply(Rbx1Error, TimeoutError):

@@ -147,26 +147,41 @@ def test_request_errors_share_a_base(fake):
         rbx1.Arm(socket=f.path).request("pick", name="bolt")
 
 
-def daemon_codes():
-    """Every error code that rbx1d's sources write: the one list (error_codes.hpp) and the codes still written as
-    strings (the CLI's own messages in host/cli are not replies)."""
-    direct = re.compile(r'(?:\.error\(|->error\(|fail\(|error_json\(|code = |error = \{|abort_reason_ = )'
-                        r'\s*"([a-z_]+)"')
-    chosen = re.compile(r'error\([^;"]*\?\s*"([a-z_]+)"\s*:\s*"([a-z_]+)"')  # error(held ? "estop_active" : "fault"
-    listed = re.compile(r'X\(\w+,\s*"([a-z_]+)"')
-    codes = set(listed.findall((ROOT / "host" / "daemon" / "error_codes.hpp").read_text()))
-    for path in (ROOT / "host").rglob("*.cpp"):
+# The client's own codes: failures on this side of the socket, never in a reply.
+CLIENT_CODES = {"no_reply", "disconnected"}
+# An error code written as a string where a reply is made, as it was before the one list (a mistyped code then went
+# out unseen): error("busy", ...), error_json("busy", ...), refuse(to, "stale", ...), code = "degenerate", ...
+WRITTEN = re.compile(r'(?:\.error\(|->error\(|fail\(|error_json\(|refuse\([^,;]*,|code = |error = \{|abort_reason_ = )'
+                     r'\s*"([a-z_]+)"')
+CHOSEN = re.compile(r'error\([^;"]*\?\s*"([a-z_]+)"\s*:\s*"([a-z_]+)"')  # error(held ? "estop_active" : "fault"
+
+
+def listed_codes():
+    """The one list (host/daemon/error_codes.hpp), as the README's table and rbx1 commands --json show it."""
+    return set(re.findall(r'X\(\w+,\s*"([a-z_]+)"', (ROOT / "host" / "daemon" / "error_codes.hpp").read_text()))
+
+
+def test_the_list_and_the_exceptions_match():
+    listed = listed_codes()
+    assert {"busy", "object_absent", "estop_active", "unauthorized", "degenerate", "stale"} <= listed, listed
+    missing = sorted(listed - set(rbx1.CODES))
+    assert not missing, f"error codes without a class in host/python/rbx1/errors.py: {missing}"
+    unlisted = sorted(set(rbx1.CODES) - listed - CLIENT_CODES)
+    assert not unlisted, f"classes in host/python/rbx1/errors.py for codes the list lacks: {unlisted}"
+
+
+def test_no_error_code_is_written_as_a_string():
+    """Replies take their code from the list (ErrorCode): the daemon, the console and MQTT write none as a string
+    (the CLI's own messages in host/cli are not replies)."""
+    assert WRITTEN.findall('reply.error("busy", why); refuse(to, "stale", why); code = "degenerate";') == \
+        ["busy", "stale", "degenerate"]  # the grep works
+    assert CHOSEN.findall('error(held ? "estop_active" : "fault", m)') == [("estop_active", "fault")]
+    found = []
+    for path in sorted((ROOT / "host").rglob("*.[ch]pp")):
         if path.parent.name != "cli" and not path.name.endswith("_test.cpp"):
             text = path.read_text(errors="replace")
-            codes |= set(direct.findall(text)) | {c for pair in chosen.findall(text) for c in pair}
-    return codes
-
-
-def test_every_code_the_daemon_writes_has_its_class():
-    codes = daemon_codes()
-    assert {"busy", "object_absent", "estop_active", "unauthorized", "degenerate"} <= codes, codes  # the grep works
-    missing = sorted(c for c in codes if c not in rbx1.CODES)
-    assert not missing, f"error codes without a class in host/python/rbx1/errors.py: {missing}"
+            found += [f"{path.relative_to(ROOT)}: {c}" for c in WRITTEN.findall(text) + CHOSEN.findall(text)]
+    assert not found, f"error codes written as strings (use ErrorCode, error_codes.hpp): {found}"
 
 
 def test_no_reply_within_the_timeout(fake):
