@@ -363,3 +363,13 @@ def test_http_unreachable(tmp_path):
         port = s.getsockname()[1]  # closed again: nobody listens there
     with pytest.raises(rbx1.Disconnected):
         rbx1.Arm(url=f"http://127.0.0.1:{port}").status()
+
+
+def test_the_readme_table_names_every_exception():
+    """host/python/README.md's table of classes names every class of errors.py (a script's author reads it there)."""
+    readme = (ROOT / "host" / "python" / "README.md").read_text()
+    table = readme[readme.index("| class | code |"):].split("\n\n")[0]
+    named = set(re.findall(r"`(\w+)`", table))
+    classes = re.findall(r"^class (\w+)\(", (ROOT / "host" / "python" / "rbx1" / "errors.py").read_text(), re.M)
+    missing = [c for c in classes if c not in named and c != "Rbx1Error"]
+    assert not missing, f"exception classes missing from host/python/README.md's table: {missing}"
