@@ -3,6 +3,7 @@
 one clear line on stderr and exit 2."""
 import json
 import os
+import re
 import struct
 import subprocess
 import zlib
@@ -152,7 +153,8 @@ def test_teaching_a_second_name_for_a_known_object_warns(files):
     assert r.returncode == 0, r.stderr
     warn = [line for line in r.stderr.splitlines() if line.startswith("rbx1 teach: warning: ")]
     assert len(warn) == 1, r.stderr
-    assert '"rod" looks like "bar" already in the library (match 0.9' in warn[0], warn
+    m = re.search(r'"rod" looks like "bar" already in the library \(match ([0-9.]+), threshold ([0-9.]+)\)', warn[0])
+    assert m and float(m[1]) >= float(m[2]) > 0.5, warn
     assert 'picks by "rod" and "bar" will answer unknown (ambiguous) for both' in warn[0], warn
     assert [o["name"] for o in json.loads(lib.read_text())["objects"]] == ["bar", "rod"]  # taught anyway
     # Both taught: the bar is ambiguous between them, as the warning said.
