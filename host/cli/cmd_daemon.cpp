@@ -130,6 +130,10 @@ void print_result(const nlohmann::json& result) {
   if (result.is_object()) {
     for (const auto& [k, v] : result.items()) {
       if (k == "report" || k == "detections") continue;
+      if (k == "warnings" && v.is_array()) {  // what the job did but the user should know (teach: look-alikes)
+        for (const auto& w : v) std::fprintf(stderr, "rbx1: warning: %s\n", w.is_string() ? w.get<std::string>().c_str() : w.dump().c_str());
+        continue;
+      }
       std::printf("%s: %s\n", k.c_str(), compact(v).c_str());
     }
   } else {

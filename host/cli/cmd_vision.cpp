@@ -9,6 +9,7 @@
 
 #include "commands.hpp"
 #include "draw.hpp"
+#include "identify.hpp"
 #include "image_io.hpp"
 #include "library.hpp"
 #include "scan_json.hpp"
@@ -173,13 +174,17 @@ void add_teach(CLI::App& app, int& exit_code) {
       return;
     }
     v::SelfViews views;
-    v::upsert(lib, vis->teach_entry(det, 0, *name, *mirror_ok, &views));
+    v::LibraryEntry entry = vis->teach_entry(det, 0, *name, *mirror_ok, &views);
+    // Taught anyway (nothing is picked wrongly: an ambiguous object is never taken), but never silently.
+    const auto twins = v::lookalikes(lib, entry, vis->detector_options().match);
+    v::upsert(lib, std::move(entry));
     if (!v::save_library(*library, lib, error)) {
       exit_code = fail("teach", error);
       return;
     }
     std::printf("taught \"%s\" (%zu objects in %s); its own views score %.3f-%.3f, accepted from %.3f\n",
                 name->c_str(), lib.entries.size(), library->c_str(), views.worst, views.median, views.threshold);
+    for (const auto& t : twins) std::fprintf(stderr, "rbx1 teach: warning: %s\n", v::lookalike_warning(*name, t).c_str());
   });
 }
 

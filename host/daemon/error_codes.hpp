@@ -38,7 +38,7 @@ enum class ErrorClass { Request, Job, Access };
   X(CameraFailed, "camera_failed", Job, "the camera gave no frame")                                               \
   X(VisionFailed, "vision_failed", Job, "the perception could not process the frame")                             \
   X(PickFailed, "pick_failed", Job, "the pick check saw the object still there after the retries")                \
-  X(PickUnverified, "pick_unverified", Job, "the pick check's frame showed no object at all where the scan before found several, twice") \
+  X(PickUnverified, "pick_unverified", Job, "a frame judging a pick (the pick check's, the sort's next scan) showed no object at all where the scan before found several, twice") \
   X(Rejected, "rejected", Job, "the firmware refused a step")                                                     \
   X(Timeout, "timeout", Job, "a step or the job took longer than allowed")                                        \
   X(LinkDown, "link_down", Job, "the serial link stayed down longer than reconnect_timeout_s")                    \

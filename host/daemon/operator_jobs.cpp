@@ -8,6 +8,7 @@
 #include "joint_steps.hpp"
 #include "kinematics.hpp"
 #include "background.hpp"
+#include "identify.hpp"
 #include "library.hpp"
 #include "machine.hpp"
 #include "pick_plan.hpp"
@@ -251,6 +252,10 @@ void Machine::job_teach(Reply& reply, const Request& r) {
     reply.error(ErrorCode::StateFailed, error);
     return;
   }
+  // A second name for an object already taught makes twins: taught anyway, never silently (warnings).
+  nlohmann::json warnings = nlohmann::json::array();
+  for (const auto& t : vision::lookalikes(lib, e, vision_->detector_options().match))
+    warnings.push_back(vision::lookalike_warning(r.name, t));
   vision::upsert(lib, e);
   if (!state_->ensure(error) || !vision::save_library(target, lib, error)) {
     reply.error(ErrorCode::StateFailed, error);
@@ -264,7 +269,7 @@ void Machine::job_teach(Reply& reply, const Request& r) {
   }
   reply.result({{"taught", r.name}, {"index", r.index}, {"objects_in_library", lib.entries.size()}, {"library", target},
                 {"area_px", round3(e.area_px)}, {"elongation", round3(e.elongation)},
-                {"threshold", round3(e.threshold.value_or(0))}});
+                {"threshold", round3(e.threshold.value_or(0))}, {"warnings", warnings}});
 }
 
 }  // namespace rbx1::daemon

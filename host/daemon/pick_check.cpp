@@ -1,8 +1,8 @@
 // pick_check.cpp - the daemon checks its own work: after a pick, a fresh scan must no longer show the object
 // where it was picked from; else a pick_failed event and, as configured, a new pick from that fresh detection.
-// A check frame that finds nothing where the scan before found several objects proves nothing (the light
-// dropped, the lens was covered: issue 27): it is taken once more, and a second blind frame is a
-// pick_unverified error, never a verified pick.
+// A frame judging a pick (this check's, the sort's next scan) that finds nothing where the scan before found
+// several objects proves nothing (the light dropped, the lens was covered: issue 27): it is taken once more, and
+// a second blind frame is a pick_unverified error, never a verified pick.
 #include "machine.hpp"
 #include "pick_plan.hpp"
 #include "scan_json.hpp"
@@ -15,23 +15,30 @@ namespace {
 bool blind(const vision::Scan& scan, size_t before) { return before >= 2 && scan.objects.empty(); }
 }  // namespace
 
+bool Machine::judging_scan(Reply& reply, vision::Scan& scan, size_t before, const std::string& name, int attempt,
+                           bool& unverified) {
+  unverified = false;
+  for (int frame = 1;; ++frame) {
+    if (!capture_and_detect(reply, scan)) return false;
+    if (!blind(scan, before)) return true;
+    reply.event("check_blind", {{"name", name}, {"attempt", attempt}, {"frame", frame}, {"before", before}});
+    if (frame == 2) break;
+  }
+  unverified = true;
+  if (!move_to(reply, "home", config_.arm.home)) return false;
+  reply.error(ErrorCode::PickUnverified, "the check after picking \"" + name + "\" found no object in two frames " +
+                                             "where the scan before found " + std::to_string(before) +
+                                             ": the camera sees nothing (light changed, lens covered?); the pick is not verified");
+  return false;
+}
+
 bool Machine::check_pick(Reply& reply, const std::string& name, const std::string& place, vision::ScanObject picked,
                          size_t scanned, nlohmann::json& result) {
   for (int attempt = 1;; ++attempt) {
     if (!move_to(reply, "check_scan", config_.arm.scan)) return false;
     vision::Scan scan;
-    for (int frame = 1;; ++frame) {
-      if (!capture_and_detect(reply, scan)) return false;
-      if (!blind(scan, scanned)) break;
-      reply.event("check_blind", {{"name", name}, {"attempt", attempt}, {"frame", frame}, {"before", scanned}});
-      if (frame == 2) {
-        if (!move_to(reply, "home", config_.arm.home)) return false;
-        reply.error(ErrorCode::PickUnverified, "the check after picking \"" + name + "\" found no object in two frames " +
-                                                   "where the scan before found " + std::to_string(scanned) +
-                                                   ": the camera sees nothing (light changed, lens covered?); the pick is not verified");
-        return false;
-      }
-    }
+    bool unverified = false;
+    if (!judging_scan(reply, scan, scanned, name, attempt, unverified)) return false;
     scanned = scan.objects.size();
     // The object still within 1 cm of where it was picked from is the object itself: the pick did not take it.
     const vision::ScanObject* left = find_same(scan, name, picked.centroid_cm);

@@ -27,7 +27,8 @@ double round1(double v) { return std::round(v * 10) / 10; }
 }  // namespace
 
 // One sort or clear from its first scan to its summary. Each cycle: a scan at the scan pose (which also judges the
-// pick before it: the object still there is a failed attempt), the choice, the pick, straight back to the scan
+// pick before it: the object still there is a failed attempt; a blind frame is taken again, then pick_unverified,
+// as in the pick check), the choice, the pick, straight back to the scan
 // pose (no homing between picks). The rescan after each pick is the safe default: a pick may nudge a neighbour.
 class SortRun {
  public:
@@ -91,7 +92,15 @@ class SortRun {
       if (!moved.code.empty()) fail_code_ = moved.code;
       return false;
     }
-    if (!m_.capture_and_detect(reply_, detections)) return false;
+    // The scan after a pick judges it: blind (nothing where the scan before found several) is taken again, then
+    // pick_unverified, as the pick check does; the pick is never counted done on a blind frame.
+    bool unverified = false;
+    if (pending_ ? !m_.judging_scan(reply_, detections, scanned_, pending_->object.cls, pending_->row.attempt, unverified)
+                 : !m_.capture_and_detect(reply_, detections)) {
+      if (unverified) fail_code_ = code_name(ErrorCode::PickUnverified);
+      return false;
+    }
+    scanned_ = detections.objects.size();
     scan_ms_ = ms_since(t);
     scan_id_.reset();
     if (!m_.history_) return true;
@@ -299,6 +308,7 @@ class SortRun {
   int64_t job_ = 0;
   std::optional<int64_t> scan_id_;
   double scan_ms_ = 0;
+  size_t scanned_ = 0;  // objects in the last scan (the one the pick being judged was chosen from)
   std::optional<Pending> pending_;
   std::vector<std::pair<SeenObject, int>> tries_;  // objects with failed attempts and how many
   std::vector<SeenObject> given_up_, reported_;

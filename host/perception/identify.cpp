@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 namespace rbx1::vision {
@@ -223,6 +224,32 @@ SelfViews learn_threshold(const Geometry& g, const LibraryEntry& entry, const Ma
   double z = std::max(kThresholdMinZ, kThresholdSpread * std::sqrt(-2 * std::log(std::max(out.worst, 1e-12))));
   out.threshold = std::max(opt.threshold, std::exp(-0.5 * z * z));
   return out;
+}
+
+std::vector<Lookalike> lookalikes(const Library& lib, const LibraryEntry& entry, const MatchOptions& opt) {
+  std::vector<Lookalike> out;
+  const double own = entry_threshold(entry, opt);
+  for (const LibraryEntry& other : lib.entries) {
+    if (other.name == entry.name) continue;  // the same name is replaced, not doubled
+    Library one;
+    one.entries.push_back(other);
+    const double score = identify(one, entry.profile, entry.area_px, entry.area_cm2, entry.elongation, opt).score;
+    const double theirs = entry_threshold(other, opt);
+    if (score < std::min(own, theirs)) continue;
+    out.push_back({other.name, score, score >= theirs ? theirs : own, 1 - score < opt.min_margin});
+  }
+  return out;
+}
+
+std::string lookalike_warning(const std::string& taught, const Lookalike& l) {
+  char figures[96];
+  std::snprintf(figures, sizeof figures, "match %.3f, threshold %.3f", l.score, l.threshold);
+  const std::string both = "\"" + taught + "\" and \"" + l.name + "\"";
+  return "\"" + taught + "\" looks like \"" + l.name + "\" already in the library (" + figures + "): " +
+         (l.ambiguous ? "an object of either shape will be ambiguous, so picks by " + both +
+                            " will answer unknown (ambiguous) for both"
+                      : "close look-alikes; a view a little off may be unknown (ambiguous) for " + both) +
+         "; teach one name per object (teaching the same name again replaces it)";
 }
 
 }  // namespace rbx1::vision

@@ -1,6 +1,7 @@
 // identify.hpp - object identification (paper step IV): the profile at the reference orientation against the library.
 #pragma once
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "grip.hpp"
@@ -68,5 +69,19 @@ struct SelfViews {
 };
 SelfViews learn_threshold(const Geometry& g, const LibraryEntry& entry, const MatchOptions& opt,
                           const PoseOptions& pose, int lines);
+
+// An entry already in the library that a new entry's object would be taken for or confused with (issue 27: a
+// second name taught for the same object made twins silently). The new entry's own profile, matched against
+// each other entry alone, scores at least that entry's threshold or the new one's: one of them accepts the
+// other's object. ambiguous: the score is within opt.min_margin of a perfect view of its own (1), so an object
+// of either shape will be ambiguous and a pick by either name answers it unknown.
+struct Lookalike {
+  std::string name;
+  double score = 0, threshold = 0;  // the match, and the threshold it reached (the larger one reached)
+  bool ambiguous = false;
+};
+std::vector<Lookalike> lookalikes(const Library& lib, const LibraryEntry& entry, const MatchOptions& opt);
+// One line for the user: which entry, the score, and what follows for picks by either name.
+std::string lookalike_warning(const std::string& taught, const Lookalike& l);
 
 }  // namespace rbx1::vision

@@ -135,6 +135,10 @@ def test_taught_data_is_saved_and_survives_a_restart(sim, daemon_factory, tmp_pa
     _, r = ok(d, {"cmd": "teach", "index": 1, "name": "widget"})
     lib = json.loads((state / "library.json").read_text())
     assert r["objects_in_library"] == len(lib["objects"]) == n_lib + 1
+    # Object 1 is in the library already: taught anyway, with a warning naming its entry (issue 27).
+    known = next(o["label"] for o in scan["detections"]["objects"] if o["index"] == 1)
+    assert known and len(r["warnings"]) == 1, r
+    assert f'"widget" looks like "{known}" already in the library (match ' in r["warnings"][0], r
     assert err(d, {"cmd": "teach", "index": 99, "name": "x"})["code"] == "no_object"
     d.stop()
 

@@ -3,8 +3,11 @@ that finds no object where the pick's own scan found several is taken again once
 time); blind twice, the job ends with pick_unverified, never a verified pick. A frame seen on the second try
 verifies as before, and a scene of one object whose check finds none is an ordinary verified pick.
 The camera is a folder of frames read in name order (one per capture): the demo scene, then the check frames.
+The sort judges each pick by its next scan with the same rule (the same function): blind twice ends the sort with
+pick_unverified and the pick in the history as unchecked, never picked.
 A blind frame here is the empty table itself (no object at all: what a dimmed light or a covered lens gives)."""
 import json
+import time
 
 import cv2
 import numpy as np
@@ -84,3 +87,47 @@ def test_the_last_object_gone_is_verified(tmp_path, sim, daemon_factory):
     events, final = pick(sim, daemon_factory, frames(tmp_path, alone, background), e2e.truth_label(obj))
     assert final.get("result", {}).get("verified") is True, json.dumps(final)
     assert not e2e.events_named(events, "check_blind")
+
+
+def sort_one(sim, daemon_factory, folder, name):
+    """A sort whose recipe maps only `name` (so the pick is that object), then the job's history rows."""
+    cfg = fast_config()
+    cfg["camera"]["device"] = folder
+    cfg["daemon"].update({"pick_retries": 1})
+    d = daemon_factory(sim.port, cfg)
+    events, final = d.request({"cmd": "sort", "recipe": {name: "tray"}})
+    # A failed job writes its rows after its final line: wait for the job's outcome in the history.
+    deadline = time.monotonic() + 10
+    while True:
+        hist = d.request({"cmd": "history"})[1]["result"]
+        if all(j["outcome"] != "running" for j in hist["jobs"]) or time.monotonic() > deadline:
+            return events, final, hist
+        time.sleep(0.05)
+
+
+def test_sort_blind_twice_is_pick_unverified(tmp_path, sim, daemon_factory):
+    scene, background, truth = load()
+    obj = once_labelled(truth)
+    events, final, hist = sort_one(sim, daemon_factory, frames(tmp_path, scene, background, background),
+                                   e2e.truth_label(obj))
+    assert final.get("error", {}).get("code") == "pick_unverified", final
+    blind = e2e.events_named(events, "check_blind")
+    assert [e["frame"] for e in blind] == [1, 2], blind
+    assert all(e["before"] == len(truth["objects"]) and e["name"] == e2e.truth_label(obj) for e in blind), blind
+    assert not e2e.events_named(events, "pick_verified")
+    assert sim.moves()[-1]["target"] == [0] * 6  # home
+    assert [p["outcome"] for p in hist["picks"]] == ["unchecked"], hist
+    assert [j["outcome"] for j in hist["jobs"]] == ["pick_unverified"], hist["jobs"]
+
+
+def test_sort_blind_once_then_seen_is_verified(tmp_path, sim, daemon_factory):
+    scene, background, truth = load()
+    obj = once_labelled(truth)
+    after = erase(scene, background, [obj])
+    events, final, hist = sort_one(sim, daemon_factory, frames(tmp_path, scene, background, after),
+                                   e2e.truth_label(obj))
+    assert final.get("result", {}).get("outcome") == "done", final
+    assert final["result"]["picked_total"] == 1, final
+    assert [e["frame"] for e in e2e.events_named(events, "check_blind")] == [1]
+    assert len(e2e.events_named(events, "pick_verified")) == 1
+    assert [p["outcome"] for p in hist["picks"]] == ["picked"], hist["picks"]

@@ -343,9 +343,13 @@ document.querySelectorAll('button.jog-mm').forEach((b) => b.addEventListener('cl
 action('pose-save', () => call('pose_save', { name: 'scan' }));
 action('place-save', () => call('place_save', { name: $('place-name').value.trim() }).then(pollStatus));
 action('background', () => call('background'));
-action('teach', () => {
+action('teach', async () => {
   if (!state.selected) return say('teach: click the object in the scan first', 'error');
-  return call('teach', { index: state.selected, name: $('teach-name').value.trim() });
+  const reply = await call('teach', { index: state.selected, name: $('teach-name').value.trim() });
+  // Taught, but a look-alike of an entry already there (issue 27): said, not the plain "done".
+  const warnings = (reply.result && reply.result.warnings) || [];
+  if (warnings.length) say('teach: warning: ' + warnings.join(' '), 'error');
+  return reply;
 });
 // The calibration's replies as the operator reads them: markers seen, what is left to touch, the residuals.
 function calibText(action, r) {

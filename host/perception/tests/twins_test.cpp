@@ -133,6 +133,40 @@ TEST(Twins, AnUntaughtTwinStaysUnknownAndTheTaughtOneIsKnown) {
   EXPECT_GT(over_half, untaught / 2);  // the pairs are look-alikes: the global rule fails on them
 }
 
+// Teaching a second name for an object already in the library made twins silently (issue 27): the same object
+// seen again (another pose, noise drawn apart) under a new name is a look-alike of its entry, ambiguous; each
+// near-twin pair's other member and an unrelated shape are not (their scores stay under the thresholds).
+TEST(Twins, TeachingASecondNameForAKnownObjectIsALookalike) {
+  std::mt19937 rng(29);
+  for (const auto& [a, b] : pairs()) {
+    Library lib;
+    lib.entries.push_back(taught(a));
+    Detection det;
+    ASSERT_TRUE(seen(a.make({260, 210}, 40 + 360 * std::uniform_real_distribution<double>(0, 1)(rng)), 900, det));
+    LibraryEntry again;
+    again.name = std::string(a.name) + "_again";
+    again.profile = det.profiles[0];
+    again.area_px = det.objects[0].geometry.area_px;
+    again.elongation = det.objects[0].pose.elongation;
+    again.threshold = learn_threshold(det.objects[0].geometry, again, {}, {}, GripOptions{}.lines).threshold;
+    const std::vector<Lookalike> l = lookalikes(lib, again, {});
+    ASSERT_EQ(l.size(), 1u) << a.name;
+    EXPECT_EQ(l[0].name, a.name);
+    EXPECT_TRUE(l[0].ambiguous) << a.name << " " << l[0].score;
+    EXPECT_GE(l[0].score, *lib.entries[0].threshold);
+    const std::string w = lookalike_warning(again.name, l[0]);
+    EXPECT_NE(w.find("\"" + again.name + "\" looks like \"" + a.name + "\""), std::string::npos) << w;
+    EXPECT_NE(w.find("will answer unknown (ambiguous) for both"), std::string::npos) << w;
+    EXPECT_TRUE(lookalikes(lib, taught(b), {}).empty()) << b.name << " is not " << a.name;
+    LibraryEntry same_name = again;
+    same_name.name = a.name;  // taught again under its own name: replaced, no twin
+    EXPECT_TRUE(lookalikes(lib, same_name, {}).empty());
+  }
+  Library lib;
+  lib.entries.push_back(taught(pairs()[0].first));
+  EXPECT_TRUE(lookalikes(lib, taught(pairs()[2].first), {}).empty());  // a disc is no bar
+}
+
 TEST(Twins, BothTaughtEachIsItselfWithTheOtherAsRunnerUp) {
   std::mt19937 rng(28);
   unsigned seed = 700;

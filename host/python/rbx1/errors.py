@@ -89,7 +89,8 @@ class PickFailed(Rbx1Error):
 
 
 class PickUnverified(Rbx1Error):
-    """The pick's check saw nothing at all, twice, where the scan before saw several objects (a blind frame)."""
+    """A frame judging a pick (the pick check's, the sort's next scan) saw nothing at all, twice, where the scan
+    before saw several objects (a blind frame)."""
     code = "pick_unverified"
 
 

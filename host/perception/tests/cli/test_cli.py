@@ -3,6 +3,7 @@
 one clear line on stderr and exit 2."""
 import json
 import os
+import re
 import struct
 import subprocess
 import zlib
@@ -139,6 +140,32 @@ def test_untaught_twin_stays_unknown(files):
         assert o["label"] == "bar" and o["identification"]["verdict"] == "known", (angle, o["identification"])
     r = run("detect", d / "twin0.png", "--library", lib)
     assert "Identified as unknown (below_threshold: nearest bar, match 0." in r.stdout, r.stdout
+
+
+def test_teaching_a_second_name_for_a_known_object_warns(files):
+    """Issue 27: the same bar taught again as "rod" (turned, moved) makes twins: taught, with a warning naming the
+    entry, the score and what follows; a different object (an ellipse) taught beside them is not warned about."""
+    d = files["dir"]
+    lib = d / "second-name-lib.json"
+    assert run("teach", files["bar"], "--name", "bar", "--library", lib).returncode == 0
+    turned = scene(d / "bar-turned.png", [("rect", (280, 260), (120, 40), 37)])
+    r = run("teach", turned, "--name", "rod", "--library", lib)
+    assert r.returncode == 0, r.stderr
+    warn = [line for line in r.stderr.splitlines() if line.startswith("rbx1 teach: warning: ")]
+    assert len(warn) == 1, r.stderr
+    m = re.search(r'"rod" looks like "bar" already in the library \(match ([0-9.]+), threshold ([0-9.]+)\)', warn[0])
+    assert m and float(m[1]) >= float(m[2]) > 0.5, warn
+    assert 'picks by "rod" and "bar" will answer unknown (ambiguous) for both' in warn[0], warn
+    assert [o["name"] for o in json.loads(lib.read_text())["objects"]] == ["bar", "rod"]  # taught anyway
+    # Both taught: the bar is ambiguous between them, as the warning said.
+    o = json.loads(run("detect", files["bar"], "--json", "--library", lib).stdout)["objects"][0]
+    assert o["label"] is None and o["identification"]["verdict"] == "ambiguous", o["identification"]
+    oval = scene(d / "oval.png", [("ell", (300, 240), (70, 30), 15)])
+    r = run("teach", oval, "--name", "oval", "--library", lib)
+    assert r.returncode == 0 and "warning" not in r.stderr, r.stderr
+    # Taught again under its own name: replaced, not a twin of itself.
+    r = run("teach", turned, "--name", "rod", "--library", lib)
+    assert r.returncode == 0 and r.stderr.count("warning") == 1 and '"bar"' in r.stderr, r.stderr
 
 
 def test_teach_needs_exactly_one_object(files):
