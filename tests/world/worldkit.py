@@ -229,29 +229,37 @@ class Cell:
         return fit
 
 
-def teach_all(cell):
+def teach_all(cell, tol_mm=15.0):
     """Teaches every object of the world once from the camera, as an operator does: `scan`, the live view's
     objects on the table (`scene`: each detection where the map in force puts it), each object of the world
-    pointed at (the detections matched to the objects' true places, the assignment of least total distance, so
-    a common offset of the camera's view does not mix them up), `teach --from-camera INDEX --name CLASS`.
-    Returns the state library's path and one record per object: class, index, distance (mm), the daemon's
-    reply (self-match figures) or error."""
+    pointed at (detections matched to the objects' true places, the assignment of least total distance, so a
+    common offset of the camera's view does not mix them up; a match farther than tol_mm is no match),
+    `teach --from-camera INDEX --name CLASS`. Returns the state library's path (None when nothing was taught) and
+    one record per object: class, index, distance (mm), the daemon's reply (self-match figures) or error (an
+    object the scan did not find: error "not_found" with the scan's report)."""
     import itertools
     scan = cell.ok({"cmd": "scan"})
     seen = cell.ok({"cmd": "scene"})["objects"]
     objs = [o for o in cell.world.state()["objects"] if o["place"] is None and not o["held"]]
-    if len(seen) < len(objs):
-        raise AssertionError(f"teach: the scan found {len(seen)} objects, the world has {len(objs)}: "
-                             f"{scan['report']}")
 
     def dist(o, d):
         return ((o["x_mm"] - d["x_mm"]) ** 2 + (o["y_mm"] - d["y_mm"]) ** 2) ** 0.5
-    best = min(itertools.permutations(range(len(seen)), len(objs)),
-               key=lambda perm: sum(dist(o, seen[k]) for o, k in zip(objs, perm)))
+    if len(seen) >= len(objs):
+        pairs = min((list(zip(range(len(objs)), perm)) for perm in itertools.permutations(range(len(seen)), len(objs))),
+                    key=lambda ps: sum(dist(objs[i], seen[k]) for i, k in ps))
+    else:
+        pairs = min((list(zip(perm, range(len(seen)))) for perm in itertools.permutations(range(len(objs)), len(seen))),
+                    key=lambda ps: sum(dist(objs[i], seen[k]) for i, k in ps))
+    match = {i: k for i, k in pairs if dist(objs[i], seen[k]) <= tol_mm}
     records, library = [], None
-    for o, k in zip(objs, best):
-        events, final = cell.daemon.request({"cmd": "teach", "index": seen[k]["index"], "name": o["class"]})
-        records.append({"class": o["class"], "index": seen[k]["index"], "distance_mm": round(dist(o, seen[k]), 2),
+    for i, o in enumerate(objs):
+        if i not in match:
+            records.append({"class": o["class"], "index": None, "distance_mm": None, "result": None,
+                            "error": {"code": "not_found", "message": scan["report"]}})
+            continue
+        d = seen[match[i]]
+        events, final = cell.daemon.request({"cmd": "teach", "index": d["index"], "name": o["class"]})
+        records.append({"class": o["class"], "index": d["index"], "distance_mm": round(dist(o, d), 2),
                         "result": final.get("result"), "error": final.get("error")})
         library = (final.get("result") or {}).get("library", library)
     return library, records
