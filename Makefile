@@ -58,6 +58,7 @@ bench: host firmware
 	@tools/bench/bus
 	@tools/bench/console-live
 	@tools/bench/world
+	@tools/bench/world --classes new --teach --configs baseline_no_errors,workspace_calibration --worlds 10 --zero-worlds 10 --objects 4-6
 	@tools/bench/mqtt
 	@tools/bench/history
 	@tools/bench/jobs

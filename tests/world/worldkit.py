@@ -23,10 +23,12 @@ TOUCH_TOL_MM = 0.15     # and judges the touch by eye to this
 TOUCH_FLOOR_MM = 0.2    # or, when the daemon will not go lower, this far above the daemon's idea of the table
 
 
-def make_world(path, seed, objects="5-10", errors=(1.0, 5.0, 3.0), k1=-0.08, drift=0.05, classes=None):
+def make_world(path, seed, objects="5-10", errors=(1.0, 5.0, 3.0), k1=-0.08, drift=0.05, classes=None,
+               class_heights=False):
     cmd = [sys.executable, str(MAKE_WORLD), "--seed", str(seed), "--objects", str(objects),
            "--errors", ",".join(str(e) for e in errors), "--k1", str(k1), "--drift", str(drift), "--out", str(path)]
-    subprocess.run(cmd + (["--classes", classes] if classes else []), check=True)
+    subprocess.run(cmd + (["--classes", classes] if classes else []) + (["--class-heights"] if class_heights else []),
+                   check=True)
     with open(path) as f:
         return json.load(f)
 
@@ -58,6 +60,19 @@ class World:
         reply = self.ask("markers on" if on else "markers off")
         if reply.strip() != "ok":
             raise AssertionError(f"rbx1-world: {reply.strip()}")
+
+    def clear_table(self, cleared):
+        """The operator takes the objects off the table (the empty table for `rbx1 background`) or puts them back."""
+        self._ok("table clear" if cleared else "table objects")
+
+    def light(self, gain, offset):
+        """The light from now on: every frame * gain + offset (the light sweep's levels)."""
+        self._ok(f"light {gain} {offset}")
+
+    def _ok(self, request):
+        reply = self.ask(request)
+        if reply.strip() != "ok":
+            raise AssertionError(f"rbx1-world: {request}: {reply.strip()}")
 
     def ask(self, request):
         s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
@@ -128,7 +143,7 @@ def daemon_config(tmp, scene_path, scene, camera):
 class Cell:
     """A world and rbx1d on it, ready to pick."""
 
-    def __init__(self, tmp, scene_path, annotate=None, time_scale=TIME_SCALE):
+    def __init__(self, tmp, scene_path, annotate=None, time_scale=TIME_SCALE, library=None):
         with open(scene_path) as f:
             self.scene = json.load(f)
         self.world = World(tmp, scene_path, time_scale)
@@ -137,6 +152,8 @@ class Cell:
             cfg = daemon_config(tmp, scene_path, self.scene, self.world.camera)
             if annotate:
                 cfg["daemon"]["annotate"] = str(annotate)
+            if library:  # a library taught before (Cell.teach_all in another world), as the configured one
+                cfg["vision"]["library"] = str(library)
             self.daemon = e2e.Daemon(tmp, cfg, self.world.port)  # stops itself when it does not get ready
         except BaseException:
             self.world.stop()
@@ -210,6 +227,90 @@ class Cell:
         fit["seen"] = seen
         fit["jogs"] = jogs
         return fit
+
+
+def teach_all(cell, tol_mm=15.0):
+    """Teaches every object of the world once from the camera, as an operator does: `scan`, the live view's
+    objects on the table (`scene`: each detection where the map in force puts it), each object of the world
+    pointed at (detections matched to the objects' true places, the assignment of least total distance, so a
+    common offset of the camera's view does not mix them up; a match farther than tol_mm is no match),
+    `teach --from-camera INDEX --name CLASS`. Returns the state library's path (None when nothing was taught) and
+    one record per object: class, index, distance (mm), the daemon's reply (self-match figures) or error (an
+    object the scan did not find: error "not_found" with the scan's report)."""
+    import itertools
+    scan = cell.ok({"cmd": "scan"})
+    seen = cell.ok({"cmd": "scene"})["objects"]
+    objs = [o for o in cell.world.state()["objects"] if o["place"] is None and not o["held"]]
+
+    def dist(o, d):
+        return ((o["x_mm"] - d["x_mm"]) ** 2 + (o["y_mm"] - d["y_mm"]) ** 2) ** 0.5
+    if len(seen) >= len(objs):
+        pairs = min((list(zip(range(len(objs)), perm)) for perm in itertools.permutations(range(len(seen)), len(objs))),
+                    key=lambda ps: sum(dist(objs[i], seen[k]) for i, k in ps))
+    else:
+        pairs = min((list(zip(perm, range(len(seen)))) for perm in itertools.permutations(range(len(objs)), len(seen))),
+                    key=lambda ps: sum(dist(objs[i], seen[k]) for i, k in ps))
+    match = {i: k for i, k in pairs if dist(objs[i], seen[k]) <= tol_mm}
+    records, library = [], None
+    for i, o in enumerate(objs):
+        if i not in match:
+            records.append({"class": o["class"], "index": None, "distance_mm": None, "result": None,
+                            "error": {"code": "not_found", "message": scan["report"]}})
+            continue
+        d = seen[match[i]]
+        events, final = cell.daemon.request({"cmd": "teach", "index": d["index"], "name": o["class"]})
+        records.append({"class": o["class"], "index": d["index"], "distance_mm": round(dist(o, d), 2),
+                        "result": final.get("result"), "error": final.get("error")})
+        library = (final.get("result") or {}).get("library", library)
+    return library, records
+
+
+def capture_background(cell, frames=8):
+    """`rbx1 background` as an operator does it: the objects taken off the table, the empty table captured at the
+    scan pose (in force for every later scan), the objects put back."""
+    cell.world.clear_table(True)
+    try:
+        return cell.ok({"cmd": "background", "frames": frames})
+    finally:
+        cell.world.clear_table(False)
+
+
+def found_by_scan(cell, tol_mm=6.0):
+    """A scan judged by the world: each object on the table found when a detection named with its class lies
+    within tol_mm of it (where the map in force puts it; a tall object's top is seen up to about 3 mm off its
+    footprint's centre at the view's edge). Returns (found, on the table, detections left over)."""
+    cell.ok({"cmd": "scan"})
+    seen = cell.ok({"cmd": "scene"})["objects"]
+    objs = [o for o in cell.world.state()["objects"] if o["place"] is None and not o["held"]]
+    used, found = set(), 0
+    for o in objs:
+        near = [k for k, d in enumerate(seen) if k not in used and d["label"] == o["class"] and
+                ((o["x_mm"] - d["x_mm"]) ** 2 + (o["y_mm"] - d["y_mm"]) ** 2) ** 0.5 <= tol_mm]
+        if near:
+            used.add(near[0])
+            found += 1
+    return found, len(objs), len(seen) - len(used)
+
+
+def light_level(cell, gain, offset):
+    """One level of the light sweep in a cell whose background was captured at nominal light: the light set to
+    frame * gain + offset, a scan judged by the world (found_by_scan), then every object picked by name.
+    Returns dict(found, expected, phantoms, picks, placed: in the place asked for, by the world's state,
+    wrong: placements of another class, errors: the daemon's error codes)."""
+    cell.world.light(gain, offset)
+    found, expected, phantoms = found_by_scan(cell)
+    records, wrong = [], 0
+    for i, obj in enumerate(cell.scene["objects"]):
+        place = "tray" if i % 2 == 0 else "bin"
+        before = len(cell.world.state()["events"])
+        events, final, _ = cell.pick(obj["class"], place)
+        new = cell.world.state()["events"][before:]
+        wrong += sum(1 for e in new if e["event"] == "placement" and e["class"] != obj["class"])
+        records.append({"label": obj["class"], "place": place, "ok": "result" in final, "final": final})
+    state = cell.world.state()
+    return {"gain": gain, "offset": offset, "found": found, "expected": expected, "phantoms": phantoms,
+            "picks": len(records), "placed": placed_correctly(state, records), "wrong": wrong,
+            "errors": sorted({r["final"]["error"]["code"] for r in records if not r["ok"]})}
 
 
 def pick_all(cell, place_of=lambda i, obj: "tray" if i % 2 == 0 else "bin"):

@@ -134,7 +134,7 @@ cv::Mat render_frame(const Scene& scene, const Eigen::Isometry3d& pose, uint64_t
   if (scene.markers_on_table)
     for (const Marker& m : scene.markers) draw_marker(pr, img, m);
   static const std::vector<Object> kNone;
-  const std::vector<Object>& objects = scene.markers_on_table ? kNone : scene.objects;
+  const std::vector<Object>& objects = objects_on_table(scene) ? scene.objects : kNone;
 
   // Shadows: each object's footprint swept away from the light to where its top edge's shadow falls.
   cv::Mat shadow(img.size(), CV_8U, cv::Scalar(0));
@@ -201,6 +201,7 @@ cv::Mat render_frame(const Scene& scene, const Eigen::Isometry3d& pose, uint64_t
   cv::Mat gain3;
   cv::merge(std::vector<cv::Mat>{gain, gain, gain}, gain3);
   f = f.mul(gain3);
+  if (li.gain != 1.0 || li.offset != 0.0) f.convertTo(f, CV_32FC3, li.gain, li.offset);
   if (li.blur_sigma_px > 0) cv::GaussianBlur(f, f, cv::Size(), li.blur_sigma_px);
   if (li.noise_sigma > 0) {
     cv::RNG rng(scene.seed * 1000003ull + frame_index * 7919ull + 1);

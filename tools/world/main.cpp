@@ -166,6 +166,16 @@ bool start_simfw(const std::string& exe, double time_scale, Simfw& out, std::str
   return true;
 }
 
+// "light GAIN OFFSET": the steady light from now on (Light::gain, offset). Returns the reply line.
+std::string light_request(rbx1::world::World& world, const std::string& args) {
+  double gain = 0, offset = 0;
+  char extra = 0;
+  if (std::sscanf(args.c_str(), "%lf %lf %c", &gain, &offset, &extra) != 2)
+    return "error light: give GAIN OFFSET, e.g. \"light 0.8 -10\"\n";
+  std::string err;
+  return world.set_light(gain, offset, err) ? "ok\n" : "error " + err + "\n";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -343,8 +353,16 @@ int main(int argc, char** argv) {
           std::string err;
           std::string text = world.set_markers_on_table(req == "markers on", err) ? "ok\n" : "error " + err + "\n";
           ok = send_all(fd, text.data(), text.size());
+        } else if (req == "table clear" || req == "table objects") {
+          std::string err;
+          std::string text = world.set_table_cleared(req == "table clear", err) ? "ok\n" : "error " + err + "\n";
+          ok = send_all(fd, text.data(), text.size());
+        } else if (req.rfind("light ", 0) == 0) {
+          std::string text = light_request(world, req.substr(6));
+          ok = send_all(fd, text.data(), text.size());
         } else {
-          std::string text = "error unknown request \"" + req + "\" (frame, state, markers on, markers off)\n";
+          std::string text = "error unknown request \"" + req +
+                             "\" (frame, state, markers on, markers off, table clear, table objects, light G O)\n";
           ok = send_all(fd, text.data(), text.size());
         }
       }

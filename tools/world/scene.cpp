@@ -71,6 +71,8 @@ void parse(const json& j, Scene& s) {
   li.gradient_dir_deg = num(l, "light", "gradient_dir_deg", li.gradient_dir_deg, -360, 360);
   li.vignette = num(l, "light", "vignette", li.vignette, 0, 0.5);
   li.drift = num(l, "light", "drift", li.drift, 0, 0.5);
+  li.gain = num(l, "light", "gain", li.gain, kMinGain, kMaxGain);
+  li.offset = num(l, "light", "offset", li.offset, -kMaxOffset, kMaxOffset);
   li.shadow_darkness = num(l, "light", "shadow_darkness", li.shadow_darkness, 0, 0.8);
   li.shadow_azimuth_deg = num(l, "light", "shadow_azimuth_deg", li.shadow_azimuth_deg, -360, 360);
   li.shadow_elevation_deg = num(l, "light", "shadow_elevation_deg", li.shadow_elevation_deg, 10, 90);

@@ -46,6 +46,9 @@ struct Camera {
   std::array<double, 3> mount_rpy_deg{0.0, 0.0, -90.0};
 };
 
+// The range of the steady light change (Light::gain, offset) a scene or the "light" request may set.
+constexpr double kMinGain = 0.2, kMaxGain = 3.0, kMaxOffset = 100.0;
+
 struct Light {
   int table_grey = 190;
   std::array<double, 3> table_tint{1.0, 1.0, 1.0};
@@ -53,6 +56,9 @@ struct Light {
   double gradient_dir_deg = 30;
   double vignette = 0.08;       // darkening at the corners
   double drift = 0.0;           // brightness swing from frame to frame (fraction)
+  // A steady change of the light after the scene was set up (the light sweep's levels, issue 27): each frame
+  // is frame * gain + offset before the sensor's noise (a brighter or dimmer lamp, a raised black level).
+  double gain = 1.0, offset = 0.0;
   double shadow_darkness = 0.15;
   double shadow_azimuth_deg = 135;  // where the light comes from, in the base frame
   double shadow_elevation_deg = 60;
@@ -89,7 +95,12 @@ struct Scene {
   std::vector<Marker> markers;
   // What lies on the table: the marker sheet (the objects set aside, neither seen nor touched) or the objects.
   bool markers_on_table = false;
+  // The objects set aside and nothing laid on the table: the empty table an operator shows `rbx1 background`.
+  bool table_cleared = false;
 };
+
+// The objects lie on the table (seen and touched): neither the marker sheet nor a cleared table.
+inline bool objects_on_table(const Scene& s) { return !s.markers_on_table && !s.table_cleared; }
 
 // Loads and checks a scene file; false + "PATH: reason" (naming the field). Draws the errors from the seed.
 bool load_scene(const std::string& path, Scene& out, std::string& error, std::optional<uint64_t> seed = {});

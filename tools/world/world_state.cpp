@@ -115,6 +115,29 @@ bool World::set_markers_on_table(bool on, std::string& error) {
   return true;
 }
 
+bool World::set_table_cleared(bool cleared, std::string& error) {
+  if (held_.index >= 0) {
+    error = "the gripper holds object " + std::to_string(scene_.objects[size_t(held_.index)].id) +
+            ": release it before changing the table";
+    return false;
+  }
+  if (cleared != scene_.table_cleared) emit({{"event", "table"}, {"cleared", cleared}});
+  scene_.table_cleared = cleared;
+  return true;
+}
+
+bool World::set_light(double gain, double offset, std::string& error) {
+  if (!(gain >= kMinGain && gain <= kMaxGain) || !(offset >= -kMaxOffset && offset <= kMaxOffset)) {
+    error = "light: gain within " + std::to_string(kMinGain) + ".." + std::to_string(kMaxGain) +
+            ", offset within +-" + std::to_string(kMaxOffset);
+    return false;
+  }
+  scene_.light.gain = gain;
+  scene_.light.offset = offset;
+  emit({{"event", "light"}, {"gain", gain}, {"offset", offset}});
+  return true;
+}
+
 Eigen::Isometry3d World::tool(const arm::Joints& deg) const { return arm::fk(scene_.links, deg); }
 
 void World::emit(json ev) {
@@ -188,7 +211,7 @@ void World::at_pose(const arm::Joints& deg, bool, std::vector<int>& hit) {
     emit({{"event", "collision"}, {"object", nullptr}, {"class", "table"},
           {"tool_mm", {r2(t.translation().x()), r2(t.translation().y()), r2(tip)}}});
   }
-  for (size_t k = 0; k < scene_.objects.size() && !scene_.markers_on_table; ++k) {
+  for (size_t k = 0; k < scene_.objects.size() && objects_on_table(scene_); ++k) {
     const Object& o = scene_.objects[k];
     if (int(k) == held_.index || std::count(hit.begin(), hit.end(), int(k))) continue;
     if (tip >= o.z_mm + o.height_mm || tip + g.finger_length_mm <= o.z_mm) continue;
@@ -216,7 +239,7 @@ void World::gripper_to(double opening) {
     // Closing: the first object between the fingers, within their height, is grasped when both fingers are
     // outside it (they straddle it) and it is at least as wide as where the fingers stop.
     std::string why = "nothing between the fingers";
-    for (size_t k = 0; k < scene_.objects.size() && !scene_.markers_on_table; ++k) {
+    for (size_t k = 0; k < scene_.objects.size() && objects_on_table(scene_); ++k) {
       Object& o = scene_.objects[k];
       if (tip >= o.z_mm + o.height_mm || tip + g.finger_length_mm <= o.z_mm) continue;
       double lo, hi;
@@ -291,6 +314,8 @@ json World::state() const {
   }
   s["objects"] = objs;
   s["markers_on_table"] = scene_.markers_on_table;
+  s["table_cleared"] = scene_.table_cleared;
+  s["light"] = {{"gain", scene_.light.gain}, {"offset", scene_.light.offset}};
   json marks = json::array();
   for (const Marker& m : scene_.markers)
     marks.push_back({{"id", m.id}, {"x_mm", m.x_mm}, {"y_mm", m.y_mm}, {"size_mm", m.size_mm}});

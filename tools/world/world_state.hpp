@@ -25,6 +25,14 @@ class World {
   // seen nor touched) or takes it away (the objects back where they were). false + error while holding an object.
   bool set_markers_on_table(bool on, std::string& error);
 
+  // The operator clears the table (the objects set aside, nothing laid there: the empty table for `rbx1
+  // background`) or puts the objects back. false + error while holding an object.
+  bool set_table_cleared(bool cleared, std::string& error);
+
+  // The light changes to a steady gain and black-level offset (Light::gain, offset; the light sweep's levels).
+  // false + error outside kMinGain..kMaxGain, +-kMaxOffset.
+  bool set_light(double gain, double offset, std::string& error);
+
   // Every event (grasp, closed_empty, collision, placement, dropped) goes here as it happens.
   void on_event(std::function<void(const nlohmann::json&)> f) { on_event_ = std::move(f); }
 

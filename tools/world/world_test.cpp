@@ -266,6 +266,49 @@ TEST(Table, TheMarkerSheetSetsTheObjectsAsideAndIsSeenWhereItLies) {
   EXPECT_NE(e.find("holds object 1"), std::string::npos) << e;
 }
 
+TEST(Table, ClearedTheCameraSeesTheEmptyTableAndTheLightChangesItsLevels) {
+  Scene s = bar_scene();
+  s.light.noise_sigma = 0;
+  s.light.blur_sigma_px = 0;
+  World w(s);
+  auto pose = camera_pose(s.links, s.camera, s.nominal.scan);
+  auto grey_at = [&](int v, int u) {
+    cv::Mat g;
+    cv::cvtColor(render_frame(w.scene(), pose, 0), g, cv::COLOR_BGR2GRAY);
+    return double(g.at<uchar>(v, u));
+  };
+  // Pixel (280, 400) lies on the bar, (100, 100) on the table.
+  const double bar = grey_at(280, 400), table = grey_at(100, 100);
+  ASSERT_LT(bar, 100);
+  std::string e;
+  ASSERT_TRUE(w.set_table_cleared(true, e)) << e;
+  EXPECT_NEAR(grey_at(280, 400), grey_at(300, 430), 3) << "the bar set aside: table there";
+  EXPECT_GT(grey_at(280, 400), 150);
+  Driver d(w);
+  d.grasp_at(300, 0);
+  EXPECT_EQ(count(w.state(), "grasps"), 0) << "nothing to close on";
+  EXPECT_TRUE(w.state()["table_cleared"].get<bool>());
+  // The objects back; the light at 0.8 with the black level 10 down: every level = level * 0.8 - 10 (+-1
+  // for the rounding of two 8-bit conversions).
+  ASSERT_TRUE(w.set_table_cleared(false, e)) << e;
+  ASSERT_TRUE(w.set_light(0.8, -10, e)) << e;
+  EXPECT_NEAR(grey_at(100, 100), table * 0.8 - 10, 1.0);
+  EXPECT_NEAR(grey_at(280, 400), bar * 0.8 - 10, 1.0);
+  EXPECT_EQ(w.state()["light"]["gain"].get<double>(), 0.8);
+  ASSERT_TRUE(w.set_light(1.2, 10, e)) << e;
+  EXPECT_NEAR(grey_at(100, 100), std::min(255.0, table * 1.2 + 10), 1.0);
+  EXPECT_FALSE(w.set_light(0.1, 0, e));
+  EXPECT_NE(e.find("gain within"), std::string::npos) << e;
+  EXPECT_FALSE(w.set_light(1.0, 150, e));
+  // Holding an object, the table cannot be cleared.
+  ASSERT_TRUE(w.set_light(1.0, 0, e)) << e;
+  d.gripper(15);
+  d.gripper(0);
+  ASSERT_EQ(count(w.state(), "grasps"), 1);
+  EXPECT_FALSE(w.set_table_cleared(true, e));
+  EXPECT_NE(e.find("holds object 1"), std::string::npos) << e;
+}
+
 TEST(Scene, ErrorsAreDrawnFromTheSeedWithinTheirMagnitudes) {
   const std::string path = testing::TempDir() + "world_scene_test.json";
   std::ofstream(path) << R"({"format": "rbx1-world", "version": 1, "seed": 5,

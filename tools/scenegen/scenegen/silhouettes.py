@@ -50,6 +50,20 @@ def reference(path):
             "centroid_px": [float((w * xs).sum() / a), float((w * ys).sum() / a)]}
 
 
+def outline_cm(path, size_cm):
+    """The file's object as one polygon in cm (image axes, about its area centroid), its longer side size_cm:
+    the outer contour of the largest component of f >= 0.5 (holes are not kept: a part's outline), simplified to
+    0.5 px. For a world that lays the silhouette out as a part (tools/world/make-world)."""
+    from .truth import area_centroid
+    mask = (fraction(path) >= 0.5).astype(np.uint8)
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    c = max(contours, key=cv2.contourArea)
+    poly = cv2.approxPolyDP(c, 0.5, True).reshape(-1, 2).astype(np.float64)
+    lo, hi = poly.min(axis=0), poly.max(axis=0)
+    poly *= size_cm / float(max(hi - lo))
+    return poly - area_centroid(poly)
+
+
 def frame(path, polarity):
     """(frame BGR uint8, captured background BGR uint8, offset (x, y) of the file's pixels in the frame)."""
     f = fraction(path)
