@@ -151,3 +151,30 @@ TEST(BusStreams, RefusesBeyondItsLimit) {
   }
   streams.stop();
 }
+
+// A sort writes its history rows after a failure deep in its steps: its final line waits for them (FinalHeld).
+TEST(Reply, AFinalLineHeldGoesOutWhenItsHolderEnds) {
+  std::vector<std::pair<std::string, bool>> lines;
+  Reply r([&](const std::string& line, bool final) { lines.emplace_back(line, final); }, Command::Sort);
+  {
+    Reply::FinalHeld held(r);
+    r.event("scan");
+    r.error(ErrorCode::PickUnverified, "blind twice");
+    EXPECT_TRUE(r.finished());
+    r.result(nlohmann::json::object());  // a second final line is still refused
+    ASSERT_EQ(lines.size(), 1u);
+    EXPECT_FALSE(lines[0].second);
+  }
+  ASSERT_EQ(lines.size(), 2u);
+  EXPECT_TRUE(lines[1].second);
+  EXPECT_EQ(nlohmann::json::parse(lines[1].first)["error"]["code"], "pick_unverified");
+}
+
+TEST(Reply, WithoutAHolderTheFinalLineGoesOutAtOnce) {
+  std::vector<std::string> lines;
+  Reply r([&](const std::string& line, bool) { lines.push_back(line); }, Command::Sort);
+  r.result({{"outcome", "done"}});
+  ASSERT_EQ(lines.size(), 1u);
+  { Reply::FinalHeld late(r); }  // held after the end: nothing is written twice
+  EXPECT_EQ(lines.size(), 1u);
+}

@@ -69,16 +69,23 @@ void Reply::forward(const nlohmann::json& line) {
   if (!finished_) write_line(line, false);
 }
 
-void Reply::result(nlohmann::json result) {
+void Reply::result(nlohmann::json result) { finish(result_reply(std::move(result))); }
+
+void Reply::error(const Error& e) { finish(error_reply(e)); }
+
+void Reply::finish(nlohmann::json final_line) {
   std::lock_guard lock(mutex_);
   if (finished_.exchange(true)) return;
-  write_line(result_reply(std::move(result)), true);
+  if (holding_) held_ = std::move(final_line);
+  else write_line(final_line, true);
 }
 
-void Reply::error(const Error& e) {
+void Reply::hold_final(bool hold) {
   std::lock_guard lock(mutex_);
-  if (finished_.exchange(true)) return;
-  write_line(error_reply(e), true);
+  holding_ = hold;
+  if (hold || !held_) return;
+  write_line(*held_, true);
+  held_.reset();
 }
 
 void Reply::error(ErrorCode code, const std::string& message) { error(Error(code, message)); }

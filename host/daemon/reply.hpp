@@ -52,6 +52,19 @@ class Reply {
   // A code carried as data: a motion result's, an abort reason, the workspace fit's. Literal codes take ErrorCode.
   void error(const std::string& code, const std::string& message);
   bool finished() const { return finished_; }
+  // Keeps the final line back until release_final() (or the holder's end): a job that writes its records after a
+  // failure deep in its steps (a sort's history rows) sends its final line once they are written, so a client
+  // that reads them on the final line finds them.
+  class FinalHeld {
+   public:
+    explicit FinalHeld(Reply& r) : r_(r) { r_.hold_final(true); }
+    ~FinalHeld() { r_.hold_final(false); }
+    FinalHeld(const FinalHeld&) = delete;
+    FinalHeld& operator=(const FinalHeld&) = delete;
+
+   private:
+    Reply& r_;
+  };
   Command command() const { return command_; }
   // Also log every line (spdlog, info) prefixed with tag: a job without a client (the start button).
   void log_to(std::string tag) { log_tag_ = std::move(tag); }
@@ -61,6 +74,8 @@ class Reply {
 
  private:
   void write_line(const nlohmann::json& j, bool final);
+  void finish(nlohmann::json final_line);
+  void hold_final(bool hold);
 
   Sink sink_;
   Command command_;
@@ -71,6 +86,8 @@ class Reply {
   std::chrono::steady_clock::time_point start_;
   std::mutex mutex_;
   std::atomic<bool> finished_{false};
+  bool holding_ = false;                  // FinalHeld
+  std::optional<nlohmann::json> held_;  // the final line while held
   std::string log_tag_;
 };
 

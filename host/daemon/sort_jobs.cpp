@@ -37,6 +37,8 @@ class SortRun {
         max_picks_(max_picks), started_(Clock::now()) {}
 
   void run() {
+    // A failure's reply line is written deep in the steps (scan, move); the history rows it leaves go first.
+    Reply::FinalHeld final_after_history(reply_);
     std::string error;
     if (m_.history_) job_ = m_.history_->begin_job(kind_, label_, error);
     if (m_.history_ && !job_) spdlog::error("history: {}", error);
