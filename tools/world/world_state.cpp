@@ -104,23 +104,22 @@ World::World(Scene scene) : scene_(std::move(scene)), initial_(scene_.objects) {
   opening_mm_ = 0;
 }
 
+bool World::table_free(std::string& error) const {
+  if (held_.index < 0) return true;
+  error = "the gripper holds object " + std::to_string(scene_.objects[size_t(held_.index)].id) +
+          ": release it before changing the table";
+  return false;
+}
+
 bool World::set_markers_on_table(bool on, std::string& error) {
-  if (held_.index >= 0) {
-    error = "the gripper holds object " + std::to_string(scene_.objects[size_t(held_.index)].id) +
-            ": release it before changing the table";
-    return false;
-  }
+  if (!table_free(error)) return false;
   if (on != scene_.markers_on_table) emit({{"event", "table"}, {"markers_on_table", on}});
   scene_.markers_on_table = on;
   return true;
 }
 
 bool World::set_table_cleared(bool cleared, std::string& error) {
-  if (held_.index >= 0) {
-    error = "the gripper holds object " + std::to_string(scene_.objects[size_t(held_.index)].id) +
-            ": release it before changing the table";
-    return false;
-  }
+  if (!table_free(error)) return false;
   if (cleared != scene_.table_cleared) emit({{"event", "table"}, {"cleared", cleared}});
   scene_.table_cleared = cleared;
   return true;

@@ -46,6 +46,8 @@ class World {
     int index = -1;             // into scene_.objects
     Eigen::Isometry3d in_tool;  // the object's bottom-centre frame in the tool frame
   };
+  // Whether the table may change: not while the gripper holds an object (error says which).
+  bool table_free(std::string& error) const;
   void at_pose(const arm::Joints& deg, bool final_sample, std::vector<int>& hit);
   void gripper_to(double opening);
   void emit(nlohmann::json ev);
