@@ -8,6 +8,9 @@
 #include <gtest/gtest.h>
 
 #include "command_table.hpp"
+#include "kinematics.hpp"
+#include "pick_plan.hpp"
+#include "vision_map.hpp"
 #include "recipes.hpp"
 #include "request.hpp"
 #include "sort_choice.hpp"
@@ -201,4 +204,34 @@ TEST(JobsRequest, FieldsOfSortClearRecipeSaveAndHistory) {
   EXPECT_EQ(e.code, "bad_field");
   EXPECT_FALSE(parse_request(R"({"cmd":"recipes","name":"bins"})", r, e));
   EXPECT_EQ(e.code, "bad_field");
+}
+
+// The second look (pick_plan.hpp): the camera moved straight over a point of the table, same height and yaw.
+TEST(SecondLook, TheLookPoseMovesTheToolByTheShiftAtTheScanHeight) {
+  const rbx1::arm::ArmConfig cfg;
+  const rbx1::arm::ToolPose scan = rbx1::arm::tool_pose(cfg.links, cfg.scan);
+  for (const auto& [dx, dy] : {std::pair{0.0, 0.0}, {60.0, -40.0}, {-70.0, 55.0}}) {
+    rbx1::arm::Joints look{};
+    std::string error;
+    ASSERT_TRUE(look_pose(cfg, {dx, dy}, look, error)) << error;
+    const rbx1::arm::ToolPose at = rbx1::arm::tool_pose(cfg.links, look);
+    EXPECT_NEAR(at.x_mm, scan.x_mm + dx, 0.01);
+    EXPECT_NEAR(at.y_mm, scan.y_mm + dy, 0.01);
+    EXPECT_NEAR(at.z_mm, scan.z_mm, 0.01);
+    EXPECT_NEAR(at.tilt_deg, scan.tilt_deg, 0.01);  // still straight down
+  }
+  rbx1::arm::Joints far{};
+  std::string error;
+  EXPECT_FALSE(look_pose(cfg, {2000.0, 0.0}, far, error));
+  EXPECT_FALSE(error.empty());
+}
+
+TEST(SecondLook, ATablePointByTheMountOrNoneUncalibrated) {
+  const rbx1::arm::ArmConfig cfg;  // the camera mount's planar map: base = origin + R(-90) F 10 cm
+  const auto p = table_point(cfg, {0, 0}, cv::Point2d(2.0, 1.0));
+  ASSERT_TRUE(p);
+  const rbx1::arm::TablePoint t = rbx1::arm::vision_to_base(cfg, {2.0, 1.0}, 0);
+  EXPECT_DOUBLE_EQ(p->x(), t.x_mm);
+  EXPECT_DOUBLE_EQ(p->y(), t.y_mm);
+  EXPECT_FALSE(table_point(cfg, {0, 0}, std::nullopt));
 }

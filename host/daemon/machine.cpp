@@ -791,6 +791,44 @@ std::string look_alikes(const std::vector<vision::ScanObject>& objects, const st
 
 }  // namespace
 
+bool Machine::second_look(Reply& reply, const vision::Scan& scan, const std::string& name,
+                          const vision::ScanObject*& found) {
+  found = nullptr;
+  const vision::ScanObject* cand = nullptr;
+  for (const auto& o : scan.objects)
+    if (!o.identity.label && o.identity.best == name &&
+        (!cand || o.identity.best_score.value_or(0) > cand->identity.best_score.value_or(0)))
+      cand = &o;
+  if (!cand) return true;
+  const cv::Point2d centre(scan.image.width / 2.0, scan.image.height / 2.0);
+  const auto at = table_point(config_.arm, cand->centroid_px, vision_->table_cm(cand->centroid_px));
+  const auto middle = table_point(config_.arm, centre, vision_->table_cm(centre));
+  arm::Joints look{};
+  std::string error = "vision is uncalibrated";
+  if (!at || !middle || !look_pose(config_.arm, *at - *middle, look, error)) {
+    reply.event("second_look", {{"index", cand->index}, {"skipped", error}});
+    return true;
+  }
+  reply.event("second_look", {{"index", cand->index}, {"name", name},
+                              {"score", vision::number_json(cand->identity.best_score)},
+                              {"over_mm", {std::round(at->x()), std::round(at->y())}}});
+  vision::Scan seen;
+  if (!move_to(reply, "look", look) || !capture_and_detect(reply, seen)) return false;
+  // The object under the view's centre (within a quarter of the frame): the one looked at.
+  const cv::Point2d mid(seen.image.width / 2.0, seen.image.height / 2.0);
+  const double near = 0.25 * std::min(seen.image.width, seen.image.height);
+  const vision::ScanObject* below = nullptr;
+  for (const auto& o : seen.objects)
+    if (cv::norm(o.centroid_px - mid) < near && (!below || cv::norm(o.centroid_px - mid) < cv::norm(below->centroid_px - mid)))
+      below = &o;
+  const bool same = below && below->identity.label == name;
+  reply.event("second_look_seen",
+              {{"index", cand->index}, {"seen_as", below && below->identity.label ? nlohmann::json(*below->identity.label) : nullptr},
+               {"score", below ? vision::number_json(below->identity.best_score) : nullptr}, {"taken", same}});
+  if (same) found = cand;
+  return true;
+}
+
 void Machine::job_pick(Reply& reply, const std::string& name, const std::string& place) {
   if (!config_.arm.places.count(place)) {
     std::string known;
@@ -811,6 +849,7 @@ void Machine::job_pick(Reply& reply, const std::string& name, const std::string&
     if (*o.identity.label == name && (!best || o.identity.score.value_or(0) > best->identity.score.value_or(0)))
       best = &o;
   }
+  if (!best && !second_look(reply, scan, name, best)) return;
   if (!best) {
     // Absent: back home, then report the error naming the object (the paper's rule).
     const std::string alike = look_alikes(scan.objects, name);

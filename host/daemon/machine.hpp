@@ -109,6 +109,12 @@ class Machine {
   // Capture + detect (the arm at the scan pose): the scan as a struct for the job; as JSON (scan_json.hpp, written
   // once) to the detected event, the console and the bus. report: the paper's Figure 21. false after reply.error.
   bool capture_and_detect(Reply& reply, vision::Scan& scan, std::string* report = nullptr);
+  // A tall part far off the camera's axis shows its side wall and can score under what it was taught at (issue
+  // 27): before a pick by name answers object_absent, the camera looks again straight over the unlabelled object
+  // whose best match is `name` (the camera is on the tool). Seen there as `name`, that object of `scan` is `found`.
+  // false after reply.error (the look's move or capture failed).
+  bool second_look(Reply& reply, const vision::Scan& scan, const std::string& name,
+                   const vision::ScanObject*& found);
   // [daemon] verify_pick (pick_check.cpp): after a pick, a scan must no longer show the object where it was;
   // else pick_failed and, up to pick_retries times, a new pick from the fresh detection; scanned: the objects the
   // pick's own scan found (a check frame with none where it found several is blind). false after reply.error.

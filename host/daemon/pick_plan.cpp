@@ -41,6 +41,24 @@ bool plan_pose_move(const arm::ArmConfig& cfg, const rbx1_status_resp& current, 
   return true;
 }
 
+std::optional<Eigen::Vector2d> table_point(const arm::ArmConfig& cfg, cv::Point2d px, std::optional<cv::Point2d> cm) {
+  if (cfg.camera.pixel_map) {
+    const Eigen::Vector2d p(px.x, px.y);
+    double opening = 0;
+    const arm::TablePoint t = arm::pixels_to_base(cfg, p, p, p, opening);
+    return Eigen::Vector2d(t.x_mm, t.y_mm);
+  }
+  if (!cm) return std::nullopt;
+  const arm::TablePoint t = arm::vision_to_base(cfg, {cm->x, cm->y}, 0);
+  return Eigen::Vector2d(t.x_mm, t.y_mm);
+}
+
+bool look_pose(const arm::ArmConfig& cfg, const Eigen::Vector2d& shift, arm::Joints& out, std::string& error) {
+  const arm::ToolPose scan = arm::tool_pose(cfg.links, cfg.scan);
+  const arm::Grasp over{scan.x_mm + shift.x(), scan.y_mm + shift.y(), scan.z_mm, scan.yaw_deg};
+  return arm::ik(cfg, over, cfg.scan, out, error);
+}
+
 bool plan_pick_steps(const arm::ArmConfig& cfg, const rbx1_status_resp& current, const vision::ScanObject& object,
                      cv::Size image_size, const std::string& place, std::vector<MotionStep>& out, nlohmann::json& info,
                      std::string& error) {

@@ -1,6 +1,7 @@
 // vision.hpp - the perception entry point: options, the [vision] config table, and one frame -> detect JSON.
 #pragma once
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -54,6 +55,10 @@ class Vision {
   LibraryEntry teach_entry(const Detection& det, size_t k, const std::string& name, bool mirror_ok,
                            SelfViews* views = nullptr) const;
   bool calibrated() const { return scale_ != nullptr; }
+  // Where pixel px of the processed frame lies on the table (cm, as objects' centroid_cm); none uncalibrated.
+  std::optional<cv::Point2d> table_cm(cv::Point2d px) const {
+    return scale_ ? std::optional<cv::Point2d>(scale_->to_cm(px)) : std::nullopt;
+  }
   double px_per_cm_at(cv::Point2d px) const { return scale_ ? scale_->px_per_cm_at(px) : 0; }
   const VisionOptions& options() const { return opt_; }
   const DetectorOptions& detector_options() const { return det_; }

@@ -140,6 +140,28 @@ def daemon_config(tmp, scene_path, scene, camera):
     return cfg
 
 
+def true_view(scene_path):
+    """The table corners (base frame, mm) the world's true camera sees at the scan pose (`rbx1-world --view`)."""
+    out = subprocess.run([e2e.need(e2e.BIN / "rbx1-world"), "--scene", str(scene_path), "--view"],
+                         check=True, capture_output=True, text=True).stdout
+    return json.loads(out)["true_view_mm"]
+
+
+def place_in_view(scene_path, index, along=0.0, yaw_deg=None):
+    """Object `index` of the scene moved to the true view's centre plus `along` times the half of its longer side
+    (0: under the camera; 0.7: well off the optical axis), turned to yaw_deg when given."""
+    c = true_view(scene_path)
+    cx, cy = sum(p[0] for p in c) / 4, sum(p[1] for p in c) / 4
+    sides = [(c[1][0] - c[0][0], c[1][1] - c[0][1]), (c[2][0] - c[1][0], c[2][1] - c[1][1])]
+    lx, ly = max(sides, key=lambda v: v[0] ** 2 + v[1] ** 2)
+    doc = json.loads(Path(scene_path).read_text())
+    obj = doc["objects"][index]
+    obj["x_mm"], obj["y_mm"] = round(cx + along * lx / 2, 3), round(cy + along * ly / 2, 3)
+    if yaw_deg is not None:
+        obj["yaw_deg"] = yaw_deg
+    Path(scene_path).write_text(json.dumps(doc, indent=1))
+
+
 class Cell:
     """A world and rbx1d on it, ready to pick."""
 

@@ -1,0 +1,72 @@
+"""test_world_second_look.py - a tall part far off the camera's optical axis (issue 27): the camera sees its side
+wall too, and the part scores under what it was taught at (the world bench's false object_absent). Taught once
+under the camera, then asked for 70 % of the half view off the axis, it is picked after a second look with the
+camera straight over it. An untaught near-twin seen there stays unknown after the second look: object_absent,
+nothing placed. Judged by the world's state."""
+import worldkit
+
+TALL = "c_ring"    # 7.6 mm tall with --class-heights: its wall shows 1 mm off axis
+TWIN = ("plate", "plate_long")
+
+
+def one_part_world(path, seed, cls, along, yaw_deg):
+    worldkit.make_world(path, seed, objects=1, errors=(0.0, 0.0, 0.0), classes=cls, class_heights=True)
+    worldkit.place_in_view(path, 0, along=along, yaw_deg=yaw_deg)
+
+
+def taught_library(tmp_path, cls):
+    (tmp_path / "teach").mkdir()
+    scene = tmp_path / "teach" / "world.json"
+    one_part_world(scene, 3000, cls, 0.0, 20.0)
+    cell = worldkit.Cell(tmp_path / "teach", scene)
+    try:
+        library, taught = worldkit.teach_all(cell)
+    finally:
+        cell.stop()
+    assert [t["class"] for t in taught if t["result"]] == [cls], taught
+    return library
+
+
+def pick_off_axis(tmp_path, library, cls, ask, yaw_deg):
+    (tmp_path / "pick").mkdir()
+    scene = tmp_path / "pick" / "world.json"
+    one_part_world(scene, 3001, cls, 0.7, yaw_deg)
+    cell = worldkit.Cell(tmp_path / "pick", scene, library=library)
+    try:
+        before = len(cell.world.state()["events"])
+        events, final, _ = cell.pick(ask, "tray")
+        placed = [e for e in cell.world.state()["events"][before:] if e["event"] == "placement"]
+    finally:
+        cell.stop()
+    return events, final, placed
+
+
+def named(events, name):
+    return [e for e in events if e.get("event") == name]
+
+
+def test_a_tall_part_off_axis_is_picked_after_a_second_look(tmp_path):
+    library = taught_library(tmp_path, TALL)
+    events, final, placed = pick_off_axis(tmp_path, library, TALL, TALL, 65.0)
+    look, seen = named(events, "second_look"), named(events, "second_look_seen")
+    print(look, seen, final)
+    # The first view did not name it (that was the false object_absent), the second did, and the world placed it.
+    first, second = [d["labels"] for d in named(events, "detected")][:2]
+    assert TALL not in first and second.count(TALL) == 1, (first, second)
+    assert len(look) == 1 and look[0]["name"] == TALL, look
+    assert seen == [dict(seen[0], seen_as=TALL, taken=True)], seen
+    assert "result" in final, final
+    assert [(p["class"], p["place"]) for p in placed] == [(TALL, "tray")], placed
+
+
+def test_an_untaught_twin_stays_unknown_after_the_second_look(tmp_path):
+    taught, untaught = TWIN
+    library = taught_library(tmp_path, taught)
+    # Turned along the view (yaw 0) the first view leaves it unknown (0.77 as the plate), so the camera looks again.
+    events, final, placed = pick_off_axis(tmp_path, library, untaught, taught, 0.0)
+    seen = named(events, "second_look_seen")
+    assert len(seen) == 1, named(events, "second_look")
+    print(named(events, "second_look"), seen, final)
+    assert final.get("error", {}).get("code") == "object_absent", final
+    assert all(not s["taken"] for s in seen), seen
+    assert placed == [], placed
