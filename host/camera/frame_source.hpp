@@ -21,6 +21,9 @@ class FrameSource {
   virtual ~FrameSource() = default;
   virtual int read(cv::Mat& bgr) = 0;  // 0 or a negative errno
   virtual std::string describe() const = 0;
+  // Whether the camera rides on the arm (the paper's camera on the end effector: a V4L2 device, rbx1-world's),
+  // so that moving the arm moves the view; an image file or a folder shows what it holds wherever the arm is.
+  virtual bool moves_with_arm() const { return false; }
 };
 
 // "/dev/videoN" (any character device) -> V4L2 mmap streaming (YUYV or MJPEG); an image file -> that image on

@@ -17,6 +17,7 @@ class LockedSource : public FrameSource {
     return inner_->read(bgr);
   }
   std::string describe() const override { return inner_->describe(); }
+  bool moves_with_arm() const override { return inner_->moves_with_arm(); }
 
  private:
   std::unique_ptr<FrameSource> inner_;

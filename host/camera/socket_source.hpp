@@ -18,6 +18,7 @@ class SocketSource : public FrameSource {
   int open(std::string& error);  // connects once, so a wrong path fails at start-up; 0 or -errno
   int read(cv::Mat& bgr) override;
   std::string describe() const override;
+  bool moves_with_arm() const override { return true; }
 
  private:
   int connect_socket(std::string& error);

@@ -30,6 +30,7 @@ class V4L2Capture : public FrameSource {
   int open(const CameraConfig& config, std::string& error);
   int read(cv::Mat& bgr) override;
   std::string describe() const override;
+  bool moves_with_arm() const override { return true; }
 
  private:
   struct Buffer {

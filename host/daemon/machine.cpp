@@ -791,41 +791,78 @@ std::string look_alikes(const std::vector<vision::ScanObject>& objects, const st
 
 }  // namespace
 
-bool Machine::second_look(Reply& reply, const vision::Scan& scan, const std::string& name,
-                          const vision::ScanObject*& found) {
-  found = nullptr;
-  const vision::ScanObject* cand = nullptr;
-  for (const auto& o : scan.objects)
-    if (!o.identity.label && o.identity.best == name &&
-        (!cand || o.identity.best_score.value_or(0) > cand->identity.best_score.value_or(0)))
-      cand = &o;
-  if (!cand) return true;
-  const cv::Point2d centre(scan.image.width / 2.0, scan.image.height / 2.0);
-  const auto at = table_point(config_.arm, cand->centroid_px, vision_->table_cm(cand->centroid_px));
+bool Machine::look_over(Reply& reply, cv::Size image, const vision::ScanObject& object, vision::Detection& det,
+                        int& under, bool& looked) {
+  under = -1;
+  looked = false;
+  const cv::Point2d centre(image.width / 2.0, image.height / 2.0);
+  const auto at = table_point(config_.arm, object.centroid_px, vision_->table_cm(object.centroid_px));
   const auto middle = table_point(config_.arm, centre, vision_->table_cm(centre));
   arm::Joints look{};
   std::string error = "vision is uncalibrated";
   if (!at || !middle || !look_pose(config_.arm, *at - *middle, look, error)) {
-    reply.event("second_look", {{"index", cand->index}, {"skipped", error}});
+    reply.event("second_look", {{"index", object.index}, {"skipped", error}});
     return true;
   }
-  reply.event("second_look", {{"index", cand->index}, {"name", name},
-                              {"score", vision::number_json(cand->identity.best_score)},
+  reply.event("second_look", {{"index", object.index}, {"score", vision::number_json(object.identity.best_score)},
                               {"over_mm", {std::round(at->x()), std::round(at->y())}}});
-  vision::Scan seen;
-  if (!move_to(reply, "look", look) || !capture_and_detect(reply, seen)) return false;
+  cv::Mat frame, processed;
+  if (!move_to(reply, "look", look) || !capture(reply, frame)) return false;
+  if (!vision_->run(frame, det, processed, error)) {
+    reply.error(ErrorCode::VisionFailed, error);
+    return false;
+  }
+  looked = true;
   // The object under the view's centre (within a quarter of the frame): the one looked at.
-  const cv::Point2d mid(seen.image.width / 2.0, seen.image.height / 2.0);
-  const double near = 0.25 * std::min(seen.image.width, seen.image.height);
-  const vision::ScanObject* below = nullptr;
-  for (const auto& o : seen.objects)
-    if (cv::norm(o.centroid_px - mid) < near && (!below || cv::norm(o.centroid_px - mid) < cv::norm(below->centroid_px - mid)))
-      below = &o;
-  const bool same = below && below->identity.label == name;
+  const cv::Point2d mid(processed.cols / 2.0, processed.rows / 2.0);
+  double nearest = 0.25 * std::min(processed.cols, processed.rows);
+  for (size_t i = 0; i < det.objects.size(); ++i) {
+    const double d = cv::norm(det.objects[i].geometry.centroid - mid);
+    if (d < nearest) nearest = d, under = int(i);
+  }
+  return true;
+}
+
+bool Machine::look_again(Reply& reply, const vision::Scan& scan, const vision::ScanObject& object,
+                         const std::string& name, bool& taken) {
+  taken = false;
+  vision::Detection det;
+  int under = -1;
+  bool looked = false;
+  if (!look_over(reply, scan.image, object, det, under, looked)) return false;
+  if (!looked) return true;
+  const vision::Scan seen = vision_->scan(det);
+  const vision::ScanObject* below = under >= 0 ? &seen.objects[size_t(under)] : nullptr;
+  taken = below && below->identity.label == name;
   reply.event("second_look_seen",
-              {{"index", cand->index}, {"seen_as", below && below->identity.label ? nlohmann::json(*below->identity.label) : nullptr},
-               {"score", below ? vision::number_json(below->identity.best_score) : nullptr}, {"taken", same}});
-  if (same) found = cand;
+              {{"index", object.index}, {"name", name},
+               {"seen_as", below && below->identity.label ? nlohmann::json(*below->identity.label) : nullptr},
+               {"score", below ? vision::number_json(below->identity.best_score) : nullptr}, {"taken", taken}});
+  return true;
+}
+
+bool Machine::look_before_picking(Reply& reply, const vision::Scan& scan, const std::string& name,
+                                  const vision::ScanObject*& best, std::string& refused) {
+  if (!camera_->moves_with_arm()) return true;  // an image file or folder shows the same wherever the arm is
+  const vision::ScanObject* object = best;
+  if (!object) {  // the unlabelled object whose best match is the name
+    for (const auto& o : scan.objects)
+      if (!o.identity.label && o.identity.best == name &&
+          (!object || o.identity.best_score.value_or(0) > object->identity.best_score.value_or(0)))
+        object = &o;
+  } else {  // already under the camera: what it was named is what it is
+    const cv::Point2d centre(scan.image.width / 2.0, scan.image.height / 2.0);
+    if (cv::norm(object->centroid_px - centre) < 0.05 * std::min(scan.image.width, scan.image.height)) return true;
+  }
+  if (!object) return true;
+  bool taken = false;
+  if (!look_again(reply, scan, *object, name, taken)) return false;
+  if (!taken) {
+    char text[120];
+    std::snprintf(text, sizeof text, "#%d was not \"%s\" seen from straight above", object->index, name.c_str());
+    refused = text;
+  }
+  best = taken ? object : nullptr;
   return true;
 }
 
@@ -849,10 +886,12 @@ void Machine::job_pick(Reply& reply, const std::string& name, const std::string&
     if (*o.identity.label == name && (!best || o.identity.score.value_or(0) > best->identity.score.value_or(0)))
       best = &o;
   }
-  if (!best && !second_look(reply, scan, name, best)) return;
+  std::string refused;  // what the second look did not take, for the absent message
+  if (!look_before_picking(reply, scan, name, best, refused)) return;
   if (!best) {
     // Absent: back home, then report the error naming the object (the paper's rule).
-    const std::string alike = look_alikes(scan.objects, name);
+    std::string alike = look_alikes(scan.objects, name);
+    if (!refused.empty()) alike += (alike.empty() ? "" : "; ") + refused;
     reply.event("absent", {{"name", name}, {"seen", seen}, {"look_alikes", alike}});
     if (!move_to(reply, "home", config_.arm.home)) return;
     reply.error(ErrorCode::ObjectAbsent, "object \"" + name + "\" is not in the scene" +

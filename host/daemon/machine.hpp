@@ -109,12 +109,23 @@ class Machine {
   // Capture + detect (the arm at the scan pose): the scan as a struct for the job; as JSON (scan_json.hpp, written
   // once) to the detected event, the console and the bus. report: the paper's Figure 21. false after reply.error.
   bool capture_and_detect(Reply& reply, vision::Scan& scan, std::string* report = nullptr);
-  // A tall part far off the camera's axis shows its side wall and can score under what it was taught at (issue
-  // 27): before a pick by name answers object_absent, the camera looks again straight over the unlabelled object
-  // whose best match is `name` (the camera is on the tool). Seen there as `name`, that object of `scan` is `found`.
-  // false after reply.error (the look's move or capture failed).
-  bool second_look(Reply& reply, const vision::Scan& scan, const std::string& name,
-                   const vision::ScanObject*& found);
+  // A part seen off the camera's optical axis shows its side wall too, and may score under what it was taught at
+  // (a tall part: a false object_absent) or as a look-alike it is not (an untaught twin turned across the lean),
+  // issue 27. So when the camera rides on the arm, a pick by name looks again straight over its object before
+  // taking it: the one labelled the name (unless already under the view's centre), else the unlabelled one whose
+  // best match is the name. `best` is then the object of `scan` seen there as the name, or null (`refused` says
+  // which was not). false after reply.error (the look's move or capture failed).
+  bool look_before_picking(Reply& reply, const vision::Scan& scan, const std::string& name,
+                           const vision::ScanObject*& best, std::string& refused);
+  // Whether the object under the view's centre, seen straight over `object`, is labelled `name` (look_over).
+  bool look_again(Reply& reply, const vision::Scan& scan, const vision::ScanObject& object, const std::string& name,
+                  bool& taken);
+  // The camera straight over `object` of a scan pose's frame of size `image` (the scan pose's tool moved by its
+  // offset from the view's centre on the table, same height and yaw), a frame and its detection `det`: `under` is
+  // the index in det.objects of the object under the view's centre (within a quarter of the frame), -1 when none.
+  // looked = false when the look is out of reach or vision uncalibrated (no move made). false after reply.error.
+  bool look_over(Reply& reply, cv::Size image, const vision::ScanObject& object, vision::Detection& det, int& under,
+                 bool& looked);
   // [daemon] verify_pick (pick_check.cpp): after a pick, a scan must no longer show the object where it was;
   // else pick_failed and, up to pick_retries times, a new pick from the fresh detection; scanned: the objects the
   // pick's own scan found (a check frame with none where it found several is blind). false after reply.error.

@@ -243,6 +243,19 @@ void Machine::job_teach(Reply& reply, const Request& r) {
                                  std::to_string(det.objects.size()) + " found)");
     return;
   }
+  // With the camera on the arm the part is taught as picks judge it: seen from straight above (look_before_picking).
+  if (camera_->moves_with_arm()) {
+    vision::Detection above;
+    int under = -1;
+    bool looked = false;
+    if (!look_over(reply, det.size, vision_->scan(det).objects[k], above, under, looked)) return;
+    if (looked && under < 0) {
+      reply.error(ErrorCode::NoObject, "no object under the camera when it looked straight over #" +
+                                           std::to_string(r.index));
+      return;
+    }
+    if (looked) det = std::move(above), k = size_t(under);
+  }
   const vision::LibraryEntry e = vision_->teach_entry(det, k, r.name, r.mirror_ok);
   // The state library starts as a copy of the configured one, so teaching adds to what the file taught.
   vision::Library lib;

@@ -1,8 +1,10 @@
 """test_world_second_look.py - a tall part far off the camera's optical axis (issue 27): the camera sees its side
 wall too, and the part scores under what it was taught at (the world bench's false object_absent). Taught once
 under the camera, then asked for 70 % of the half view off the axis, it is picked after a second look with the
-camera straight over it. An untaught near-twin seen there stays unknown after the second look: object_absent,
-nothing placed. Judged by the world's state."""
+camera straight over it. An untaught near-twin is not taken, whether the first view left it unknown or took it for
+its taught twin (the lean across it): object_absent, nothing placed. Judged by the world's state."""
+import pytest
+
 import worldkit
 
 TALL = "c_ring"    # 7.6 mm tall with --class-heights: its wall shows 1 mm off axis
@@ -51,22 +53,23 @@ def test_a_tall_part_off_axis_is_picked_after_a_second_look(tmp_path):
     look, seen = named(events, "second_look"), named(events, "second_look_seen")
     print(look, seen, final)
     # The first view did not name it (that was the false object_absent), the second did, and the world placed it.
-    first, second = [d["labels"] for d in named(events, "detected")][:2]
-    assert TALL not in first and second.count(TALL) == 1, (first, second)
-    assert len(look) == 1 and look[0]["name"] == TALL, look
-    assert seen == [dict(seen[0], seen_as=TALL, taken=True)], seen
+    assert TALL not in named(events, "detected")[0]["labels"], events
+    assert len(look) == 1 and look[0]["score"] < 0.9, look
+    assert seen == [dict(seen[0], name=TALL, seen_as=TALL, taken=True)], seen
     assert "result" in final, final
     assert [(p["class"], p["place"]) for p in placed] == [(TALL, "tray")], placed
 
 
-def test_an_untaught_twin_stays_unknown_after_the_second_look(tmp_path):
+@pytest.mark.parametrize("yaw_deg, first", [(0.0, None), (65.0, "plate")])
+def test_an_untaught_twin_is_not_taken_after_the_second_look(tmp_path, yaw_deg, first):
+    """Turned along the view the first view leaves the untaught plate_long unknown (0.77 as the plate); turned
+    across the lean it is taken for the plate (0.998). From straight above it is neither (0.90 < 0.92)."""
     taught, untaught = TWIN
     library = taught_library(tmp_path, taught)
-    # Turned along the view (yaw 0) the first view leaves it unknown (0.77 as the plate), so the camera looks again.
-    events, final, placed = pick_off_axis(tmp_path, library, untaught, taught, 0.0)
+    events, final, placed = pick_off_axis(tmp_path, library, untaught, taught, yaw_deg)
     seen = named(events, "second_look_seen")
-    assert len(seen) == 1, named(events, "second_look")
     print(named(events, "second_look"), seen, final)
+    assert [d["labels"] for d in named(events, "detected")][0] == [first]
+    assert len(seen) == 1 and not seen[0]["taken"], seen
     assert final.get("error", {}).get("code") == "object_absent", final
-    assert all(not s["taken"] for s in seen), seen
     assert placed == [], placed
