@@ -824,8 +824,8 @@ bool Machine::look_over(Reply& reply, cv::Size image, const vision::ScanObject& 
 }
 
 bool Machine::look_again(Reply& reply, const vision::Scan& scan, const vision::ScanObject& object,
-                         const std::string& name, bool& taken) {
-  taken = false;
+                         const std::string& name, std::optional<bool>& taken) {
+  taken.reset();
   vision::Detection det;
   int under = -1;
   bool looked = false;
@@ -837,7 +837,7 @@ bool Machine::look_again(Reply& reply, const vision::Scan& scan, const vision::S
   reply.event("second_look_seen",
               {{"index", object.index}, {"name", name},
                {"seen_as", below && below->identity.label ? nlohmann::json(*below->identity.label) : nullptr},
-               {"score", below ? vision::number_json(below->identity.best_score) : nullptr}, {"taken", taken}});
+               {"score", below ? vision::number_json(below->identity.best_score) : nullptr}, {"taken", *taken}});
   return true;
 }
 
@@ -855,14 +855,15 @@ bool Machine::look_before_picking(Reply& reply, const vision::Scan& scan, const 
     if (cv::norm(object->centroid_px - centre) < 0.05 * std::min(scan.image.width, scan.image.height)) return true;
   }
   if (!object) return true;
-  bool taken = false;
+  std::optional<bool> taken;
   if (!look_again(reply, scan, *object, name, taken)) return false;
-  if (!taken) {
+  if (!taken) return true;  // no look (out of reach): the first view's verdict stands
+  if (!*taken) {
     char text[120];
     std::snprintf(text, sizeof text, "#%d was not \"%s\" seen from straight above", object->index, name.c_str());
     refused = text;
   }
-  best = taken ? object : nullptr;
+  best = *taken ? object : nullptr;
   return true;
 }
 

@@ -117,9 +117,10 @@ class Machine {
   // which was not). false after reply.error (the look's move or capture failed).
   bool look_before_picking(Reply& reply, const vision::Scan& scan, const std::string& name,
                            const vision::ScanObject*& best, std::string& refused);
-  // Whether the object under the view's centre, seen straight over `object`, is labelled `name` (look_over).
+  // Whether the object under the view's centre, seen straight over `object`, is labelled `name` (look_over);
+  // none when no look was made (out of reach, uncalibrated).
   bool look_again(Reply& reply, const vision::Scan& scan, const vision::ScanObject& object, const std::string& name,
-                  bool& taken);
+                  std::optional<bool>& taken);
   // The camera straight over `object` of a scan pose's frame of size `image` (the scan pose's tool moved by its
   // offset from the view's centre on the table, same height and yaw), a frame and its detection `det`: `under` is
   // the index in det.objects of the object under the view's centre (within a quarter of the frame), -1 when none.
