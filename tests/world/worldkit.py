@@ -2,6 +2,7 @@
 configure rbx1d for it (lens calibration and nominal camera mapping from the world, a fast arm), calibrate the
 workspace as an operator would (the marker sheet on the table, the tool point jogged onto each marker by eye, fit,
 save), pick, and read the world's truth. Used by tests/world and tools/bench/world."""
+import itertools
 import json
 import os
 import socket
@@ -57,9 +58,7 @@ class World:
 
     def markers(self, on):
         """The operator lays the marker sheet on the table (the objects set aside) or takes it away."""
-        reply = self.ask("markers on" if on else "markers off")
-        if reply.strip() != "ok":
-            raise AssertionError(f"rbx1-world: {reply.strip()}")
+        self._ok("markers on" if on else "markers off")
 
     def clear_table(self, cleared):
         """The operator takes the objects off the table (the empty table for `rbx1 background`) or puts them back."""
@@ -251,6 +250,19 @@ class Cell:
         return fit
 
 
+def table_distance_mm(a, b):
+    """Distance on the table between two things with x_mm, y_mm (an object of the world, a detection's place)."""
+    return ((a["x_mm"] - b["x_mm"]) ** 2 + (a["y_mm"] - b["y_mm"]) ** 2) ** 0.5
+
+
+def least_total_pairs(n, m, cost):
+    """The pairs (i, k), i < n, k < m, covering the shorter side, each index at most once, of least total cost."""
+    if m < n:
+        return [(i, k) for k, i in least_total_pairs(m, n, lambda k, i: cost(i, k))]
+    return min((list(zip(range(n), ks)) for ks in itertools.permutations(range(m), n)),
+               key=lambda ps: sum(cost(i, k) for i, k in ps))
+
+
 def teach_all(cell, tol_mm=15.0):
     """Teaches every object of the world once from the camera, as an operator does: `scan`, the live view's
     objects on the table (`scene`: each detection where the map in force puts it), each object of the world
@@ -259,19 +271,12 @@ def teach_all(cell, tol_mm=15.0):
     `teach --from-camera INDEX --name CLASS`. Returns the state library's path (None when nothing was taught) and
     one record per object: class, index, distance (mm), the daemon's reply (self-match figures) or error (an
     object the scan did not find: error "not_found" with the scan's report)."""
-    import itertools
     scan = cell.ok({"cmd": "scan"})
     seen = cell.ok({"cmd": "scene"})["objects"]
     objs = [o for o in cell.world.state()["objects"] if o["place"] is None and not o["held"]]
 
-    def dist(o, d):
-        return ((o["x_mm"] - d["x_mm"]) ** 2 + (o["y_mm"] - d["y_mm"]) ** 2) ** 0.5
-    if len(seen) >= len(objs):
-        pairs = min((list(zip(range(len(objs)), perm)) for perm in itertools.permutations(range(len(seen)), len(objs))),
-                    key=lambda ps: sum(dist(objs[i], seen[k]) for i, k in ps))
-    else:
-        pairs = min((list(zip(perm, range(len(seen)))) for perm in itertools.permutations(range(len(objs)), len(seen))),
-                    key=lambda ps: sum(dist(objs[i], seen[k]) for i, k in ps))
+    dist = table_distance_mm
+    pairs = least_total_pairs(len(objs), len(seen), lambda i, k: dist(objs[i], seen[k]))
     match = {i: k for i, k in pairs if dist(objs[i], seen[k]) <= tol_mm}
     records, library = [], None
     for i, o in enumerate(objs):
@@ -306,8 +311,8 @@ def found_by_scan(cell, tol_mm=6.0):
     objs = [o for o in cell.world.state()["objects"] if o["place"] is None and not o["held"]]
     used, found = set(), 0
     for o in objs:
-        near = [k for k, d in enumerate(seen) if k not in used and d["label"] == o["class"] and
-                ((o["x_mm"] - d["x_mm"]) ** 2 + (o["y_mm"] - d["y_mm"]) ** 2) ** 0.5 <= tol_mm]
+        near = [k for k, d in enumerate(seen)
+                if k not in used and d["label"] == o["class"] and table_distance_mm(o, d) <= tol_mm]
         if near:
             used.add(near[0])
             found += 1
