@@ -8,6 +8,12 @@ import numpy as np
 SUBROWS = 16  # horizontal scanlines per pixel row; along each scanline the coverage is exact
 
 
+def lit(img, gain, offset):
+    """An 8-bit image under another light: each level * gain + offset, rounded and clipped to 0-255 (the light
+    sweep's levels, issue 27)."""
+    return np.clip(np.rint(img.astype(np.float64) * gain + offset), 0, 255).astype(np.uint8)
+
+
 def coverage(poly, shape, subrows=SUBROWS):
     """Fraction of each pixel covered by the polygon (float64, shape (h, w)).
 
