@@ -70,10 +70,8 @@ bool detect(const cv::Mat& gray, const cv::Mat& background_gray, const DetectorO
                          o.chord_d);
     std::vector<double> profile = identity_profile(o.geometry, o.pose, hits, opt.grip.lines);
     if (lib && !lib->entries.empty()) {
-      std::optional<double> cm2;
-      if (opt.px_per_cm > 0) cm2 = o.geometry.area_px / (opt.px_per_cm * opt.px_per_cm);
-      o.identity = identity_of(*lib, identify(*lib, profile, o.geometry.area_px, cm2, o.pose.elongation, opt.match),
-                               opt.match);
+      const SeenArea area = SeenArea::of(o.geometry, opt.px_per_cm);
+      o.identity = identity_of(*lib, identify(*lib, profile, area, o.pose.elongation, opt.match), opt.match);
     }
     o.layer = std::move(layer);
     o.index = int(out.objects.size()) + 1;

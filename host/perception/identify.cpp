@@ -11,7 +11,7 @@ namespace rbx1::vision {
 std::vector<double> identity_profile(const Geometry& g, const Pose& p, const RayHits& hits, int lines) {
   const int rays = 2 * lines;
   const double step = M_PI / lines;
-  const double scale = 1.0 / std::sqrt(std::max(g.area_px, 1.0));
+  const double scale = 1.0 / std::sqrt(std::max(g.half_area_px, 1.0));
   std::vector<double> out(static_cast<size_t>(kProfileBins));
   for (int j = 0; j < kProfileBins; ++j) {
     double psi = p.orientation_deg * M_PI / 180 + j * 2 * M_PI / kProfileBins;
@@ -44,10 +44,19 @@ void envelope(const std::vector<double>& v, int k, std::vector<double>& lo, std:
 // How far x lies outside [lo, hi].
 double outside(double x, double lo, double hi) { return x > hi ? x - hi : (x < lo ? lo - x : 0.0); }
 
+// The seen object's area and the profile's scale factor as `ref` measures them.
+double size_deviation(const LibraryEntry& ref, const SeenArea& seen, double& profile_scale) {
+  const bool layer = ref.area_kind == AreaKind::Layer;
+  const double px = layer ? seen.layer_px : seen.half_px;
+  profile_scale = layer ? std::sqrt(seen.half_px / std::max(seen.layer_px, 1.0)) : 1.0;
+  if (seen.px_per_cm > 0 && ref.area_cm2) return 0.5 * std::log(px / (seen.px_per_cm * seen.px_per_cm) / *ref.area_cm2);
+  return 0.5 * std::log(px / ref.area_px);
+}
+
 }  // namespace
 
-Match identify(const Library& lib, const std::vector<double>& profile, double area_px, std::optional<double> area_cm2,
-               double elongation, const MatchOptions& opt) {
+Match identify(const Library& lib, const std::vector<double>& profile, const SeenArea& area, double elongation,
+               const MatchOptions& opt) {
   Match best;
   const int n = kProfileBins;
   const int slack = std::max(0, opt.angle_slack_bins);
@@ -69,6 +78,8 @@ Match identify(const Library& lib, const std::vector<double>& profile, double ar
   for (size_t e = 0; e < lib.entries.size(); ++e) {
     const LibraryEntry& ref = lib.entries[e];
     envelope(ref.profile, slack, ref_lo, ref_hi);
+    double f = 1;  // the seen profile's scale as this entry measures area
+    double size_dev = size_deviation(ref, area, f);
     double best_rms = 1e300;
     for (int mirror = 0; mirror <= (ref.mirror_ok ? 1 : 0); ++mirror) {
       const std::vector<double>& p = seen[mirror];
@@ -77,18 +88,19 @@ Match identify(const Library& lib, const std::vector<double>& profile, double ar
         double acc = 0;
         for (int k = 0; k < n; ++k) {
           size_t q = size_t(((k + s) % n + n) % n), j = size_t(k);
-          double a = outside(p[j], ref_lo[q], ref_hi[q]), b = outside(ref.profile[q], seen_lo[mirror][j], seen_hi[mirror][j]);
+          double a = outside(f * p[j], ref_lo[q], ref_hi[q]),
+                 b = outside(ref.profile[q], f * seen_lo[mirror][j], f * seen_hi[mirror][j]);
           acc += 0.5 * (a * a + b * b);
           if (acc >= best_rms * best_rms * n) break;  // cannot beat the best any more
         }
         best_rms = std::min(best_rms, std::sqrt(acc / n));
       }
     }
-    double size_dev = 0;
     if (opt.size_sigma > 0) {
-      size_dev = (area_cm2 && ref.area_cm2) ? 0.5 * std::log(*area_cm2 / *ref.area_cm2) : 0.5 * std::log(area_px / ref.area_px);
       if (size_dev > 0) size_dev = std::max(0.0, size_dev - std::log1p(std::max(0.0, opt.size_grow)));
       size_dev /= opt.size_sigma;
+    } else {
+      size_dev = 0;
     }
     double z = best_rms / opt.shape_sigma;
     double score = std::exp(-0.5 * (z * z + size_dev * size_dev));
@@ -168,6 +180,9 @@ double signed_area(const std::vector<EdgePoint>& c) {
   return a2 / 2;
 }
 
+// The px per cm an entry was taught at (0 when uncalibrated).
+double entry_scale(const LibraryEntry& e) { return e.area_cm2 ? std::sqrt(e.area_px / *e.area_cm2) : 0.0; }
+
 // One view of the taught contour: each point moved along its outward normal by offset + noise, then scaled and
 // turned about the centroid; weights, centroid, moments and area measured again (psi/rho left to cast_rays).
 Geometry view_of(const Geometry& g, double turn, double scale, double offset, double noise, std::mt19937& rng) {
@@ -190,7 +205,9 @@ Geometry view_of(const Geometry& g, double turn, double scale, double offset, do
     const EdgePoint &p = v.contour[(i + n - 1) % n], &q = v.contour[i], &r = v.contour[(i + 1) % n];
     v.contour[i].w = 0.5 * (std::hypot(q.x - p.x, q.y - p.y) + std::hypot(r.x - q.x, r.y - q.y));
   }
-  v.area_px = g.area_px * std::abs(signed_area(v.contour) / signed_area(c));
+  const double grown = std::abs(signed_area(v.contour) / signed_area(c));
+  v.area_px = g.area_px * grown;
+  v.half_area_px = g.half_area_px * grown;
   if (!polygon_moments(v.contour, v)) v.centroid = g.centroid;
   return v;
 }
@@ -213,9 +230,7 @@ SelfViews learn_threshold(const Geometry& g, const LibraryEntry& entry, const Ma
     Geometry v = view_of(g, turn, 1 + kViewScale * U(rng), kViewOffsetPx * U(rng), kViewNoisePx, rng);
     Pose p = estimate_pose(v, pose);
     std::vector<double> prof = identity_profile(v, p, cast_rays(v, lines), lines);
-    std::optional<double> cm2;
-    if (entry.area_cm2) cm2 = *entry.area_cm2 * v.area_px / g.area_px;
-    scores.push_back(identify(self, prof, v.area_px, cm2, p.elongation, opt).score);
+    scores.push_back(identify(self, prof, SeenArea::of(v, entry_scale(entry)), p.elongation, opt).score);
   }
   std::sort(scores.begin(), scores.end());
   out.worst = scores.front();
@@ -233,7 +248,9 @@ std::vector<Lookalike> lookalikes(const Library& lib, const LibraryEntry& entry,
     if (other.name == entry.name) continue;  // the same name is replaced, not doubled
     Library one;
     one.entries.push_back(other);
-    const double score = identify(one, entry.profile, entry.area_px, entry.area_cm2, entry.elongation, opt).score;
+    // The new entry's layer area is not kept: against an entry of that kind its profile is compared unscaled.
+    const SeenArea area{entry.area_px, entry.area_px, entry_scale(entry)};
+    const double score = identify(one, entry.profile, area, entry.elongation, opt).score;
     const double theirs = entry_threshold(other, opt);
     if (score < std::min(own, theirs)) continue;
     out.push_back({other.name, score, score >= theirs ? theirs : own, 1 - score < opt.min_margin});

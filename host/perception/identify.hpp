@@ -26,8 +26,15 @@ struct MatchOptions {
 };
 
 // Outermost contour crossing per direction, measured from the principal axis (the reference orientation),
-// divided by sqrt(area): rays handle shapes that are not star-shaped around their centroid.
+// divided by sqrt(half_area_px): rays handle shapes that are not star-shaped around their centroid.
 std::vector<double> identity_profile(const Geometry& g, const Pose& p, const RayHits& hits, int lines);
+
+// A seen object's size, by both of an entry's possible area kinds (LibraryEntry::area_kind).
+struct SeenArea {
+  double half_px = 0, layer_px = 0;
+  double px_per_cm = 0;  // the scale at the object; 0 uncalibrated
+  static SeenArea of(const Geometry& g, double px_per_cm) { return {g.half_area_px, g.area_px, px_per_cm}; }
+};
 
 struct Match {
   int entry = -1;      // best library entry, -1 if the library is empty
@@ -39,9 +46,10 @@ struct Match {
 // mirror image for entries that allow it. The shape term tolerates a misalignment of angle_slack_bins: where a
 // ray grazes a corner or an edge (an L's inner corner next to its centroid) r jumps within a bin, and a fraction
 // of a degree of axis or a tenth of a millimetre of centroid moves the jump into the neighbouring bin.
-// area_cm2 is used for the size term when both sides have it.
-Match identify(const Library& lib, const std::vector<double>& profile, double area_px, std::optional<double> area_cm2,
-               double elongation, const MatchOptions& opt);
+// The size term compares cm² when both sides are calibrated, else px; each entry by its own area kind (an entry
+// of the soft layer's area gets the profile rescaled to that area: it matches exactly as it did).
+Match identify(const Library& lib, const std::vector<double>& profile, const SeenArea& area, double elongation,
+               const MatchOptions& opt);
 
 // Whether a match names its object (issue 27: an untaught look-alike stays unknown). The best entry must score
 // at least its own threshold (the learnt one, never below opt.threshold; opt.threshold for entries without one),

@@ -338,6 +338,17 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign,
       if (obuf[i]) hist[cbuf[i]]++;
     med = median();
   }
+  // The object's own contrast: the median over the component's pixels at or above half of the plain median. A
+  // cast shadow above the low threshold joins a thin part's component and pulls the plain median down (a ring
+  // 20 px wide, light grey: 90 against its own pixels' 117), which would put the half level, so the outline, out in
+  // its blurred rim: the same part measured 4 % larger light grey than black.
+  {
+    int above = 0;
+    for (int i = (med + 1) / 2; i < 256; ++i) above += hist[i];
+    int acc = 0, i = (med + 1) / 2;
+    while (i < 255 && (acc += hist[i]) * 2 < above) ++i;
+    if (above > 0) med = i;
+  }
   const double level = std::max<double>(med, threshold);
   layer.level = level;
   const double lo = std::min(2 * con.noise_sigma, level * 0.25), hi = std::max(level - 2 * con.noise_sigma, level * 0.75);

@@ -66,6 +66,10 @@ bool load_library(const std::string& path, Library& out, std::string& error, boo
       e.area_cm2 = o["area_cm2"].get<double>();
     }
     e.elongation = o.value("elongation", 1.0);
+    // "area" names the entry's area kind: "half_level" (taught since the half-level area), absent or "layer".
+    const json kind = o.value("area", json("layer"));
+    if (kind != "layer" && kind != "half_level") return fail(where + ".area must be \"half_level\" or \"layer\"");
+    e.area_kind = kind == "half_level" ? AreaKind::HalfLevel : AreaKind::Layer;
     if (o.contains("threshold") && !o["threshold"].is_null()) {
       if (!o["threshold"].is_number() || !(o["threshold"].get<double>() > 0 && o["threshold"].get<double>() <= 1))
         return fail(where + ".threshold must be a number in (0, 1]");
@@ -81,6 +85,7 @@ bool save_library(const std::string& path, const Library& lib, std::string& erro
   for (const LibraryEntry& e : lib.entries) {
     json o = {{"name", e.name}, {"mirror_ok", e.mirror_ok}, {"area_px", e.area_px}, {"elongation", e.elongation}};
     o["area_cm2"] = e.area_cm2 ? json(*e.area_cm2) : json(nullptr);
+    if (e.area_kind == AreaKind::HalfLevel) o["area"] = "half_level";
     if (e.threshold) o["threshold"] = std::round(*e.threshold * 1e4) / 1e4;
     json p = json::array();
     for (double v : e.profile) p.push_back(std::round(v * 1e5) / 1e5);

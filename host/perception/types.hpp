@@ -31,6 +31,9 @@ struct EdgePoint {
 struct Geometry {
   cv::Point2d centroid;               // area centroid of the soft layer
   double area_px = 0;                 // covered area (sum of the soft layer)
+  // The area at the half level, what identification compares (measure_geometry): the layer's anti-aliased edge
+  // counted at its fraction, a shadow or fringe fainter than a third of the object's contrast not at all.
+  double half_area_px = 0;
   double mu20 = 0, mu02 = 0, mu11 = 0;  // central second moments of the area, per unit area
   int edge_pixels = 0;                // pixels of the layer with |G| > t (paper Eq. 1-2): the edge image
   std::vector<EdgePoint> contour;     // outer contour: its edge pixels moved to sub-pixel positions, ordered

@@ -136,9 +136,10 @@ LibraryEntry Vision::teach_entry(const Detection& det, size_t k, const std::stri
   e.name = name;
   e.mirror_ok = mirror_ok;
   e.profile = det.profiles[k];
-  e.area_px = o.geometry.area_px;
+  e.area_px = o.geometry.half_area_px;
+  e.area_kind = AreaKind::HalfLevel;
   e.elongation = o.pose.elongation;
-  if (double ppc = px_per_cm_at(o.geometry.centroid); ppc > 0) e.area_cm2 = o.geometry.area_px / (ppc * ppc);
+  if (double ppc = px_per_cm_at(o.geometry.centroid); ppc > 0) e.area_cm2 = e.area_px / (ppc * ppc);
   SelfViews v = learn_threshold(o.geometry, e, det_.match, det_.pose, det_.grip.lines);
   e.threshold = v.threshold;
   if (views) *views = v;

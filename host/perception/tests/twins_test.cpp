@@ -62,7 +62,8 @@ LibraryEntry taught(const Twin& t, SelfViews* views = nullptr) {
   LibraryEntry e;
   e.name = t.name;
   e.profile = det.profiles[0];
-  e.area_px = det.objects[0].geometry.area_px;
+  e.area_px = det.objects[0].geometry.half_area_px;
+  e.area_kind = AreaKind::HalfLevel;
   e.elongation = det.objects[0].pose.elongation;
   SelfViews v = learn_threshold(det.objects[0].geometry, e, {}, {}, GripOptions{}.lines);
   e.threshold = v.threshold;
@@ -78,8 +79,7 @@ Identity identity_at(const Library& lib, const Twin& t, std::mt19937& rng, unsig
     ADD_FAILURE() << t.name << ": not one object";
     return {};
   }
-  Match m = identify(lib, det.profiles[0], det.objects[0].geometry.area_px, std::nullopt,
-                     det.objects[0].pose.elongation, {});
+  Match m = identify(lib, det.profiles[0], SeenArea::of(det.objects[0].geometry, 0), det.objects[0].pose.elongation, {});
   if (match) *match = m;
   return identity_of(lib, m, {});
 }
@@ -146,7 +146,8 @@ TEST(Twins, TeachingASecondNameForAKnownObjectIsALookalike) {
     LibraryEntry again;
     again.name = std::string(a.name) + "_again";
     again.profile = det.profiles[0];
-    again.area_px = det.objects[0].geometry.area_px;
+    again.area_px = det.objects[0].geometry.half_area_px;
+  again.area_kind = AreaKind::HalfLevel;
     again.elongation = det.objects[0].pose.elongation;
     again.threshold = learn_threshold(det.objects[0].geometry, again, {}, {}, GripOptions{}.lines).threshold;
     const std::vector<Lookalike> l = lookalikes(lib, again, {});
@@ -217,7 +218,7 @@ TEST(Twins, LibraryCarriesTheThresholdAndOldEntriesLoad) {
   Library lib;
   lib.entries.resize(2);
   for (auto& e : lib.entries) e.profile.assign(kProfileBins, 0.5), e.area_px = 100;
-  lib.entries[0].name = "new", lib.entries[0].threshold = 0.91234;
+  lib.entries[0].name = "new", lib.entries[0].threshold = 0.91234, lib.entries[0].area_kind = AreaKind::HalfLevel;
   lib.entries[1].name = "old";
   ASSERT_TRUE(save_library(dir + "/twins_lib.json", lib, error)) << error;
   Library back;
@@ -227,6 +228,8 @@ TEST(Twins, LibraryCarriesTheThresholdAndOldEntriesLoad) {
   EXPECT_DOUBLE_EQ(*back.entries[0].threshold, 0.9123);
   EXPECT_FALSE(back.entries[1].threshold);
   EXPECT_DOUBLE_EQ(entry_threshold(back.entries[1], {}), 0.5);
+  EXPECT_EQ(back.entries[0].area_kind, AreaKind::HalfLevel);
+  EXPECT_EQ(back.entries[1].area_kind, AreaKind::Layer);
   auto write = [&](const char* name, const std::string& threshold) {
     std::string profile = "[";
     for (int i = 0; i < kProfileBins; ++i) profile += (i ? ",1" : "1");
@@ -236,10 +239,28 @@ TEST(Twins, LibraryCarriesTheThresholdAndOldEntriesLoad) {
   };
   EXPECT_TRUE(load_library(write("old.json", ""), back, error)) << error;  // an old library: no threshold field
   EXPECT_FALSE(back.entries[0].threshold);
+  EXPECT_EQ(back.entries[0].area_kind, AreaKind::Layer);  // and no area field: the layer's sum
+  EXPECT_FALSE(load_library(write("bad.json", ",\"area\":\"soft\""), back, error));
+  EXPECT_NE(error.find("objects[0].area must be \"half_level\" or \"layer\""), std::string::npos) << error;
   for (const char* bad : {",\"threshold\":1.5", ",\"threshold\":0", ",\"threshold\":\"high\""}) {
     EXPECT_FALSE(load_library(write("bad.json", bad), back, error)) << bad;
     EXPECT_NE(error.find("objects[0].threshold must be a number in (0, 1]"), std::string::npos) << error;
   }
+}
+
+// An entry taught before the half level's area (its profile and size by the layer's sum) still matches its own
+// object perfectly: the seen profile is rescaled to that area.
+TEST(Twins, AnEntryOfTheLayersAreaMatchesAsBefore) {
+  Detection det;
+  ASSERT_TRUE(seen(pairs()[0].first.make({300, 220}, 25), 5, det));
+  const DetectedObject& o = det.objects[0];
+  LibraryEntry old{"old", false, det.profiles[0], o.geometry.area_px, std::nullopt, AreaKind::Layer, o.pose.elongation,
+                   std::nullopt};
+  for (double& v : old.profile) v *= std::sqrt(o.geometry.half_area_px / o.geometry.area_px);
+  Library lib;
+  lib.entries.push_back(old);
+  EXPECT_NEAR(identify(lib, det.profiles[0], SeenArea::of(o.geometry, 0), o.pose.elongation, {}).score, 1.0, 1e-9);
+  EXPECT_NE(o.geometry.half_area_px, o.geometry.area_px);  // the two areas differ: the rescale is what matched it
 }
 
 }  // namespace
