@@ -108,7 +108,7 @@ TEST(SortChoice, SkipsWithReasonsAndLeavesUnmappedClasses) {
                  object(5, "spring", 9, 9), object(6, "bolt", 3, 3),
                  object(7, "bolt", 4, 1, true, GripReason::None, true)};
   Recipe r{{"bolt", "tray"}, {"nut", "bin"}, {"washer", "bin"}};
-  Sorting s = sort_objects(det, r, {{"bolt", cv::Point2d(3.3, 3.2)}});
+  Sorting s = sort_objects(det, r, {{{"bolt", cv::Point2d(3.3, 3.2)}, "gave_up", "its pick failed every attempt"}});
   ASSERT_EQ(s.candidates.size(), 2u);
   EXPECT_EQ(s.candidates[0].index, 0u);
   EXPECT_FALSE(s.candidates[0].disturbs);

@@ -826,6 +826,11 @@ bool Machine::look_over(Reply& reply, cv::Size image, const vision::ScanObject& 
 bool Machine::look_again(Reply& reply, const vision::Scan& scan, const vision::ScanObject& object,
                          const std::string& name, std::optional<bool>& taken) {
   taken.reset();
+  // An image file or folder shows the same wherever the arm is; an object under the camera was seen from above.
+  const cv::Point2d centre(scan.image.width / 2.0, scan.image.height / 2.0);
+  if (!camera_->moves_with_arm() ||
+      cv::norm(object.centroid_px - centre) < 0.05 * std::min(scan.image.width, scan.image.height))
+    return true;
   vision::Detection det;
   int under = -1;
   bool looked = false;
@@ -843,17 +848,11 @@ bool Machine::look_again(Reply& reply, const vision::Scan& scan, const vision::S
 
 bool Machine::look_before_picking(Reply& reply, const vision::Scan& scan, const std::string& name,
                                   const vision::ScanObject*& best, std::string& refused) {
-  if (!camera_->moves_with_arm()) return true;  // an image file or folder shows the same wherever the arm is
   const vision::ScanObject* object = best;
-  if (!object) {  // the unlabelled object whose best match is the name
-    for (const auto& o : scan.objects)
-      if (!o.identity.label && o.identity.best == name &&
-          (!object || o.identity.best_score.value_or(0) > object->identity.best_score.value_or(0)))
-        object = &o;
-  } else {  // already under the camera: what it was named is what it is
-    const cv::Point2d centre(scan.image.width / 2.0, scan.image.height / 2.0);
-    if (cv::norm(object->centroid_px - centre) < 0.05 * std::min(scan.image.width, scan.image.height)) return true;
-  }
+  for (const auto& o : scan.objects)  // none named: the unlabelled object whose best match is the name
+    if (!best && !o.identity.label && o.identity.best == name &&
+        (!object || o.identity.best_score.value_or(0) > object->identity.best_score.value_or(0)))
+      object = &o;
   if (!object) return true;
   std::optional<bool> taken;
   if (!look_again(reply, scan, *object, name, taken)) return false;

@@ -118,7 +118,8 @@ class Machine {
   bool look_before_picking(Reply& reply, const vision::Scan& scan, const std::string& name,
                            const vision::ScanObject*& best, std::string& refused);
   // Whether the object under the view's centre, seen straight over `object`, is labelled `name` (look_over);
-  // none when no look was made (out of reach, uncalibrated).
+  // none when no look was made or needed (a camera that does not move with the arm, the object already under the
+  // camera, out of reach, uncalibrated). A pick by name and each pick of a sort ask it.
   bool look_again(Reply& reply, const vision::Scan& scan, const vision::ScanObject& object, const std::string& name,
                   std::optional<bool>& taken);
   // The camera straight over `object` of a scan pose's frame of size `image` (the scan pose's tool moved by its

@@ -35,7 +35,7 @@ const vision::ScanObject* find_same(const vision::Scan& scan, const std::string&
   return best;
 }
 
-Sorting sort_objects(const vision::Scan& scan, const Recipe& recipe, const std::vector<SeenObject>& given_up) {
+Sorting sort_objects(const vision::Scan& scan, const Recipe& recipe, const std::vector<SetAside>& set_aside) {
   Sorting s;
   for (size_t i = 0; i < scan.objects.size(); ++i) {
     const vision::ScanObject& o = scan.objects[i];
@@ -47,10 +47,11 @@ Sorting sort_objects(const vision::Scan& scan, const Recipe& recipe, const std::
       else ++s.left[cls];
       continue;
     }
-    bool gave_up = std::any_of(given_up.begin(), given_up.end(),
-                               [&](const SeenObject& g) { return same_object(o, g.cls, g.centroid_cm); });
-    if (gave_up) {
-      s.skips.push_back({i, cls, "gave_up", "its pick failed every attempt"});
+    auto aside = std::find_if(set_aside.begin(), set_aside.end(), [&](const SetAside& a) {
+      return same_object(o, a.object.cls, a.object.centroid_cm);
+    });
+    if (aside != set_aside.end()) {
+      s.skips.push_back({i, cls, aside->reason, aside->detail});
       continue;
     }
     if (!o.grip.feasible) {

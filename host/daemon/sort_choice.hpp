@@ -28,8 +28,15 @@ struct Candidate {
 struct Skip {
   size_t index = 0;
   std::string cls;
-  std::string reason;  // infeasible_grip, touching, unknown_class, unreachable, gave_up
-  std::string detail;  // the grip's own reason, the planner's error, the attempts
+  std::string reason;  // infeasible_grip, touching, unknown_class, unreachable, gave_up, not_confirmed
+  std::string detail;  // the grip's own reason, the planner's error, the attempts, what it was seen as
+};
+
+// An object the job will not pick again, and why (gave_up: its attempts failed; not_confirmed: seen from
+// straight above it was not its class).
+struct SetAside {
+  SeenObject object;
+  std::string reason, detail;
 };
 
 struct Sorting {
@@ -46,8 +53,8 @@ const vision::ScanObject* find_same(const vision::Scan& scan, const std::string&
                                     const std::optional<cv::Point2d>& centroid_cm);
 std::string class_of(const vision::ScanObject& object);  // its label, or "unknown"
 
-// The objects of the scan under recipe; those matching given_up are skipped ("gave_up").
-Sorting sort_objects(const vision::Scan& scan, const Recipe& recipe, const std::vector<SeenObject>& given_up);
+// The objects of the scan under recipe; those matching an object set aside are skipped with its reason.
+Sorting sort_objects(const vision::Scan& scan, const Recipe& recipe, const std::vector<SetAside>& set_aside);
 // Candidates that disturb no neighbour first, then the shortest planned travel; ties by detection order.
 void rank(std::vector<Candidate>& candidates);
 

@@ -128,7 +128,7 @@ class SortRun {
       bool retry = p.row.attempt <= m_.config_.daemon.pick_retries;
       p.object.centroid_cm = left->centroid_cm;
       if (retry) tries_.push_back({p.object, p.row.attempt});
-      else given_up_.push_back(p.object);
+      else set_aside_.push_back({p.object, "gave_up", "its pick failed every attempt"});
       reply_.event("pick_failed", {{"name", p.object.cls}, {"attempt", p.row.attempt}, {"reason", "still_there"},
                                    {"centroid_cm", vision::point_json(p.object.centroid_cm)}, {"retry", retry}});
     } else {
@@ -206,7 +206,7 @@ class SortRun {
   bool pick_next(const vision::Scan& detections, std::string& outcome) {
     progress("choose");
     auto chosen_at = Clock::now();
-    Sorting s = sort_objects(detections, recipe_, given_up_);
+    Sorting s = sort_objects(detections, recipe_, set_aside_);
     left_objects_ = s.left;
     struct Planned {
       std::vector<MotionStep> steps;
@@ -238,6 +238,9 @@ class SortRun {
     rank(reachable);
     const Candidate& c = reachable.front();
     const vision::ScanObject& o = detections.objects[c.index];
+    bool confirmed = true;
+    if (!confirm_from_above(detections, c, confirmed)) return false;
+    if (!confirmed) return true;  // set aside: the next scan chooses again
     Planned& plan = plans[c.index];
     double plan_ms = ms_since(chosen_at);
     Pending p{{c.cls, o.centroid_cm}, c.place, {}, chosen_at};
@@ -271,6 +274,22 @@ class SortRun {
       ++failed_;
     }
     return ok;
+  }
+
+  // Seen off the optical axis a part shows its side wall, so a look-alike can pass for a class: each pick is
+  // judged from straight above first, as a pick by name is (Machine::look_again). One seen there as something
+  // else is set aside for the rest of the job (not_confirmed), never picked as this class. false after
+  // reply.error (the look's move or capture failed).
+  bool confirm_from_above(const vision::Scan& detections, const Candidate& c, bool& confirmed) {
+    confirmed = true;
+    if (c.cls == kUnknownClass) return true;  // a recipe's "unknown" place takes whatever is not known
+    const vision::ScanObject& o = detections.objects[c.index];
+    std::optional<bool> taken;
+    if (!m_.look_again(reply_, detections, o, c.cls, taken)) return false;
+    if (!taken || *taken) return true;
+    confirmed = false;
+    set_aside_.push_back({{c.cls, o.centroid_cm}, "not_confirmed", "not \"" + c.cls + "\" seen from straight above"});
+    return true;
   }
 
   // The job failed (reply.error was sent): a pick made but not judged is written as unchecked; the job's outcome
@@ -313,7 +332,8 @@ class SortRun {
   size_t scanned_ = 0;  // objects in the last scan (the one the pick being judged was chosen from)
   std::optional<Pending> pending_;
   std::vector<std::pair<SeenObject, int>> tries_;  // objects with failed attempts and how many
-  std::vector<SeenObject> given_up_, reported_;
+  std::vector<SetAside> set_aside_;  // not to be picked again this job (gave_up, not_confirmed)
+  std::vector<SeenObject> reported_;
   std::map<std::string, std::map<std::string, int>> picked_;
   std::map<std::string, int> left_objects_;
   json last_skips_ = json::array();
