@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <cstring>
 #include <map>
+#include <vector>
 
 #include <opencv2/imgproc.hpp>
 
@@ -15,6 +16,83 @@
 
 namespace rbx1::vision {
 namespace {
+
+// Otsu's cut over hist[from..to]: the last bin of the darker (lower) class; from - 1 when there is none.
+int otsu_cut(const int* hist, int from, int to) {
+  double n = 0, sum = 0;
+  for (int i = from; i <= to; ++i) n += hist[i], sum += double(i) * hist[i];
+  double best = -1, w0 = 0, s0 = 0;
+  int cut = from - 1;
+  for (int k = from; k < to; ++k) {
+    w0 += hist[k], s0 += double(k) * hist[k];
+    const double w1 = n - w0;
+    if (w0 < 1 || w1 < 1) continue;
+    const double m0 = s0 / w0, m1 = (sum - s0) / w1, between = w0 * w1 * (m1 - m0) * (m1 - m0);
+    if (between > best) best = between, cut = k;
+  }
+  return cut;
+}
+
+// The median bin of hist[from..to].
+int median_of(const int* hist, int from, int to) {
+  double n = 0;
+  for (int i = from; i <= to; ++i) n += hist[i];
+  int m = from;
+  for (double acc = 0; m < to && (acc += hist[m]) * 2 < n; ++m) {}
+  return m;
+}
+
+// The lighter class of a region, lo < c <= hi (`cand`), opened 5x5 (a blurred rim or a specular streak is thinner;
+// an erosion as the dilation of the complement: outside the ROI counts as set, as cv::erode's default border has
+// it) and regrown 2 px within itself (`grown`). Returns whether anything is left.
+bool lighter_class(const uchar* cbuf, const uchar* obuf, int W, int H, uchar lo, uchar hi, cv::Mat& cand,
+                   cv::Mat& grown) {
+  cand.create(H, W, CV_8U);
+  for (int y = 0; y < H; ++y) {
+    const uchar* cr = cbuf + size_t(y) * size_t(W);
+    const uchar* orow = obuf + size_t(y) * size_t(W);
+    uchar* a = cand.ptr<uchar>(y);
+    for (int x = 0; x < W; ++x) a[x] = orow[x] & uchar(-int(cr[x] > lo)) & uchar(-int(cr[x] <= hi));
+  }
+  cv::Mat opened;
+  cv::bitwise_not(cand, grown);
+  dilate_square(grown, opened, 2);
+  cv::bitwise_not(opened, opened);
+  dilate_square(opened, opened, 2);
+  if (cv::countNonZero(opened) == 0) {
+    grown.setTo(0);
+    return false;
+  }
+  dilate_square(opened, grown, 2);
+  grown &= cand;
+  return true;
+}
+
+// Within 2 px of the shade the contrast taken against the shade instead of the table, c' = (c - s) L / (L - s)
+// (s: the shade's median, L: the object's level): the shade has none and the object's edge over it lies
+// half-way between shade and object, as its edge over the table does. Returns whether cbuf changed.
+bool against_shade(uchar* cbuf, int W, int H, const cv::Mat& shade, int L) {
+  int sh[256] = {}, ns = 0;
+  for (int y = 0; y < H; ++y) {
+    const uchar* cr = cbuf + size_t(y) * size_t(W);
+    const uchar* m = shade.ptr<uchar>(y);
+    for (int x = 0; x < W; ++x)
+      if (m[x]) sh[cr[x]]++, ++ns;
+  }
+  int s = 0;
+  for (int acc = 0; s < 256 && (acc += sh[s]) * 2 < ns; ++s) {}
+  if (L - s < 1) return false;
+  cv::Mat zone;
+  dilate_square(shade, zone, 2);
+  const double k = double(L) / double(L - s);
+  for (int y = 0; y < H; ++y) {
+    uchar* cr = cbuf + size_t(y) * size_t(W);
+    const uchar* z = zone.ptr<uchar>(y);
+    for (int x = 0; x < W; ++x)
+      if (z[x]) cr[x] = uchar(std::clamp(int(std::lround((cr[x] - s) * k)), 0, 255));
+  }
+  return true;
+}
 
 // Without a captured background, an object's own soft shadow beside one side has no model of the shaded table:
 // it is a shelf of contrast between the object's half level and its own level, attached to the object and
@@ -26,45 +104,22 @@ namespace {
 // class (against its caster) and at least 10 % outside the half level (reaching the table), at least a tenth of
 // the object's class, and soft (the component's band below the half level beyond it at least twice as deep as
 // beyond the object's own edge away from it: a penumbra, not the camera's blur; a sweet's lit half has the
-// sweet's sharp edge) is shade. Within
-// 2 px of the shade the contrast is taken against the shade instead of the table, c' = (c - s) L / (L - s) (s:
-// the shade's median, L: the object class's), so the shade has none and the object's edge over it lies half-way
-// between shade and object, as its edge over the table does. Returns whether shade was found (cbuf changed).
+// sweet's sharp edge) is shade, and near it the contrast is taken against it (against_shade). Returns whether
+// shade was found (cbuf changed).
 bool drop_shade_shelf(uchar* cbuf, const uchar* obuf, int W, int H, const int* hist, int half_c, double sigma) {
   double n = 0, sum = 0;
   for (int i = half_c + 1; i < 256; ++i) n += hist[i], sum += double(i) * hist[i];
   if (n < 50) return false;
-  double best = -1, w0 = 0, s0 = 0;
-  int cut = -1;
-  for (int k = half_c + 1; k < 255; ++k) {
-    w0 += hist[k], s0 += double(k) * hist[k];
-    const double w1 = n - w0;
-    if (w0 < 1 || w1 < 1) continue;
-    const double m0 = s0 / w0, m1 = (sum - s0) / w1, between = w0 * w1 * (m1 - m0) * (m1 - m0);
-    if (between > best) best = between, cut = k;
-  }
-  if (cut < 0) return false;
+  const int cut = otsu_cut(hist, half_c + 1, 255);
+  if (cut <= half_c) return false;
   double n_lo = 0, s_lo = 0;
   for (int i = half_c + 1; i <= cut; ++i) n_lo += hist[i], s_lo += double(i) * hist[i];
   const double n_hi = n - n_lo, m_lo = s_lo / n_lo, m_hi = (sum - s_lo) / n_hi;
   if (m_hi - m_lo < std::max(4 * sigma, 0.2 * m_hi) || n_lo > n_hi || n_lo < 0.1 * n_hi) return false;
-  // The lighter class, opened 5x5 (an erosion as the dilation of the complement: outside the ROI counts as set,
-  // as cv::erode's default border has it). Most objects stop here: their blurred rim is all the class has.
-  cv::Mat cand(H, W, CV_8U), opened, grown;
+  // Most objects stop here: their blurred rim is all the lighter class has.
+  cv::Mat cand, grown;
+  if (!lighter_class(cbuf, obuf, W, H, uchar(half_c), uchar(cut), cand, grown)) return false;
   const uchar lo = uchar(half_c), hi = uchar(cut);
-  for (int y = 0; y < H; ++y) {
-    const uchar* cr = cbuf + size_t(y) * size_t(W);
-    const uchar* orow = obuf + size_t(y) * size_t(W);
-    uchar* a = cand.ptr<uchar>(y);
-    for (int x = 0; x < W; ++x) a[x] = orow[x] & uchar(-int(cr[x] > lo)) & uchar(-int(cr[x] <= hi));
-  }
-  cv::bitwise_not(cand, grown);
-  dilate_square(grown, opened, 2);
-  cv::bitwise_not(opened, opened);
-  dilate_square(opened, opened, 2);
-  if (cv::countNonZero(opened) == 0) return false;
-  dilate_square(opened, grown, 2);
-  grown &= cand;
   cv::Mat core(H, W, CV_8U), outside(H, W, CV_8U), band(H, W, CV_8U);
   for (int y = 0; y < H; ++y) {
     const uchar* cr = cbuf + size_t(y) * size_t(W);
@@ -110,28 +165,60 @@ bool drop_shade_shelf(uchar* cbuf, const uchar* obuf, int W, int H, const int* h
     any = true;
   }
   if (!any) return false;
-  int sh[256] = {}, ns = 0;
-  for (int y = 0; y < H; ++y) {
-    const uchar* cr = cbuf + size_t(y) * size_t(W);
-    const uchar* m = shade.ptr<uchar>(y);
-    for (int x = 0; x < W; ++x)
-      if (m[x]) sh[cr[x]]++, ++ns;
-  }
-  int s = 0;
-  for (int acc = 0; s < 256 && (acc += sh[s]) * 2 < ns; ++s) {}
-  int L = cut + 1;
-  for (double acc = 0; L < 256 && (acc += hist[L]) * 2 < n_hi; ++L) {}
-  if (L - s < 1) return false;
-  cv::Mat zone;
-  dilate_square(shade, zone, 2);
-  const double k = double(L) / double(L - s);
-  for (int y = 0; y < H; ++y) {
-    uchar* cr = cbuf + size_t(y) * size_t(W);
-    const uchar* z = zone.ptr<uchar>(y);
-    for (int x = 0; x < W; ++x)
-      if (z[x]) cr[x] = uchar(std::clamp(int(std::lround((cr[x] - s) * k)), 0, 255));
-  }
-  return true;
+  return against_shade(cbuf, W, H, shade, median_of(hist, cut + 1, 255));
+}
+
+// The blur of an edge of height h: the contrast's gradient is steepest where it crosses h/2, h / (sigma sqrt(2 pi))
+// for a step blurred by a Gaussian; the median gradient over the pixels of `where` between 0.4 h and 0.6 h.
+// Returns 0 when there are none (noise only steepens the gradient: a noisy edge looks sharper, never softer).
+double edge_blur(const cv::Mat& contrast, const cv::Mat& where, double h) {
+  cv::Mat gx, gy;
+  cv::Sobel(contrast, gx, CV_32F, 1, 0, 3, 1.0 / 8);
+  cv::Sobel(contrast, gy, CV_32F, 0, 1, 3, 1.0 / 8);
+  std::vector<float> g;
+  for (int y = 0; y < contrast.rows; ++y)
+    for (int x = 0; x < contrast.cols; ++x) {
+      const int c = contrast.at<uchar>(y, x);
+      if (where.at<uchar>(y, x) && c > 0.4 * h && c < 0.6 * h)
+        g.push_back(std::hypot(gx.at<float>(y, x), gy.at<float>(y, x)));
+    }
+  if (g.size() < 20) return 0;
+  std::nth_element(g.begin(), g.begin() + long(g.size() / 2), g.end());
+  const double m = g[g.size() / 2];
+  return m > 0 ? h / (std::sqrt(2 * M_PI) * m) : 0;
+}
+
+// A thin dark caster (a star's arms) can have a soft shadow as large as itself or larger: the region's median
+// contrast is then the shade's, not the object's, and the half level lets shade into the outline (tools/world's
+// sil_star_2 seen from above: 7202 px of shade at contrast 16-86 beside 5929 px of star at 143; median 30,
+// area 12915 px for about 6000). Otsu's cut over the whole region parts the two; when the median `med` falls in
+// the lighter class, the darker class is the caster and its median L the object's level, if the lighter class
+// lies under L/2 (at the caster's level it is a shadow fainter than half the object, which the layer leaves out
+// anyway) and its edge towards the table is at least 1.5 times as blurred as the caster's (a penumbra against
+// the camera's blur: 2.2 px against 1.2 there; a grey part of a two-tone object has the object's own sharp edge).
+// Then near the shade (the lighter class opened, without the caster's blurred rim) the contrast is taken against
+// it, as drop_shade_shelf does, so the shade does not widen the caster's long edge over it. Returns L (cbuf may
+// have changed), or 0.
+int caster_level(uchar* cbuf, const uchar* obuf, int W, int H, const int* hist, int med, double sigma) {
+  const int cut = otsu_cut(hist, 1, 255);
+  if (med > cut) return 0;  // the median is the object's own: the usual case
+  double n_hi = 0;
+  for (int i = cut + 1; i < 256; ++i) n_hi += hist[i];
+  if (n_hi < 50) return 0;
+  const int s = median_of(hist, 1, cut), L = median_of(hist, cut + 1, 255);
+  if (L - s < std::max(4 * sigma, 0.2 * L) || 2 * s >= L) return 0;
+  const cv::Mat contrast(H, W, CV_8U, cbuf), own(H, W, CV_8U, const_cast<uchar*>(obuf));
+  // Each edge away from the other: the shade's (fading below the region's threshold) beyond 3 px of the caster,
+  // the caster's beyond 3 px of the shade (over the shade its ramp is lower and mixes with the shade's levels).
+  cv::Mat near, cand, lighter, by_shade, by_caster;
+  dilate_square(own, near, 3);
+  dilate_square(own & (contrast > cut), by_caster, 3);
+  const bool body = lighter_class(cbuf, obuf, W, H, 0, uchar(cut), cand, lighter);
+  dilate_square(lighter, by_shade, 3);
+  const double shade = edge_blur(contrast, near & ~by_caster, s), object = edge_blur(contrast, own & ~by_shade, L);
+  if (shade <= 0 || object <= 0 || shade < 1.5 * object) return 0;
+  if (body) against_shade(cbuf, W, H, lighter, L);
+  return L;
 }
 
 // The automatic background's global surface is one quadratic over the whole table: a cloth whose level drifts
@@ -329,14 +416,19 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign,
     return 0;
   };
   int med = median();
-  if (shade_shelf && sign < 0 &&
-      drop_shade_shelf(cbuf.data(), obuf.data(), W, H, hist, int(std::floor(std::max<double>(med, threshold) / 2)),
-                       con.noise_sigma)) {
-    // The contrast changed near the shade: the component's median again.
+  auto half_of = [&](int m) { return int(std::floor(std::max<double>(m, threshold) / 2)); };
+  auto recount = [&] {  // the contrast changed near the shade
     std::fill(hist, hist + 256, 0);
     for (size_t i = 0; i < cbuf.size(); ++i)
       if (obuf[i]) hist[cbuf[i]]++;
-    med = median();
+  };
+  // A shade larger than its caster: the caster's level, not the region's median (which is the shade's).
+  const bool dark_shade = shade_shelf && sign < 0;
+  const int caster = dark_shade ? caster_level(cbuf.data(), obuf.data(), W, H, hist, med, con.noise_sigma) : 0;
+  if (caster > 0) recount(), med = caster;
+  if (dark_shade && drop_shade_shelf(cbuf.data(), obuf.data(), W, H, hist, half_of(med), con.noise_sigma)) {
+    recount();  // the component's median again (the caster's: above its half level)
+    med = caster > 0 ? median_of(hist, half_of(caster) + 1, 255) : median();
   }
   // The object's own contrast: the median over the component's pixels at or above half of the plain median. A
   // cast shadow above the low threshold joins a thin part's component and pulls the plain median down (a ring
