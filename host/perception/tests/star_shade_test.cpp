@@ -1,6 +1,7 @@
 // star_shade_test.cpp - without a captured background, a thin dark star's soft shadow, swept between its arms,
 // can be larger than the star itself (tools/world's sil_star_2 seen from above: 7202 px of shade beside 5929 of
 // star): its outline is the star's, not the star with the shade in its wedges.
+#include <cstdio>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -81,7 +82,8 @@ double shade_inside(const cv::Mat& gray, const Poly& obj, const DetectedObject& 
 
 // The world's light shade (25 levels against the star's 149) and a deeper one (57): both under the star's half
 // level, both larger than the star. Before, the region's median lay in the shade (70 here, 30 in the world) and
-// the outline took the star with its shade: 7112 and 9978 px for 5562 here.
+// the outline took the star with its shade: 7112 and 9978 px for 5562 here; the object's own level (the median
+// above half the plain one) alone leaves 5926 and 7745 px.
 TEST(StarShade, AShadeLargerThanAThinStarIsNotItsOutline) {
   const Poly obj = star({320, 240}, 75, 24, 10, 9);
   const double area = std::abs(cv::contourArea(std::vector<cv::Point2f>(obj.begin(), obj.end())));
@@ -97,7 +99,9 @@ TEST(StarShade, AShadeLargerThanAThinStarIsNotItsOutline) {
     // Without the rule the shade is in the outline.
     Detection before = run_auto(g, false);
     ASSERT_EQ(before.objects.size(), 1u);
-    EXPECT_GT(before.objects[0].geometry.area_px, 1.2 * area);
+    std::printf("depth %.2f: %.0f px with the rule, %.0f px without, true %.0f\n", depth, o.geometry.area_px,
+                before.objects[0].geometry.area_px, area);
+    EXPECT_GT(before.objects[0].geometry.area_px, (depth > 0.2 ? 1.2 : 1.05) * area);
   }
 }
 
