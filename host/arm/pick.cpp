@@ -15,9 +15,9 @@ namespace rbx1::arm {
 
 namespace {
 
-std::string mm(double v) {
+std::string mm(double v, int decimals = 1) {
   char buf[32];
-  std::snprintf(buf, sizeof buf, "%.1f", v);
+  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
   return buf;
 }
 
@@ -102,7 +102,8 @@ bool gripper_pulse_us(const GripperConfig& g, double opening_mm, uint16_t& pulse
     return false;
   }
   if (opening_mm > g.max_opening_mm + 1e-9) {
-    error = "gripper opening " + mm(opening_mm) + " mm is wider than the gripper's " + mm(g.max_opening_mm) +
+    const int d = mm(opening_mm) == mm(g.max_opening_mm) ? 2 : 1;  // "50.0 is wider than 50.0" would say nothing
+    error = "gripper opening " + mm(opening_mm, d) + " mm is wider than the gripper's " + mm(g.max_opening_mm, d) +
             " mm (arm.gripper.max_opening_mm)";
     return false;
   }

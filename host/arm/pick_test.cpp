@@ -55,6 +55,8 @@ TEST(Gripper, OpeningToPulse) {
   EXPECT_EQ(us, 1246);
   EXPECT_FALSE(gripper_pulse_us(g, 50.5, us, error));
   EXPECT_EQ(error, "gripper opening 50.5 mm is wider than the gripper's 50.0 mm (arm.gripper.max_opening_mm)");
+  EXPECT_FALSE(gripper_pulse_us(g, 50.04, us, error));  // within the first decimal: two of them
+  EXPECT_EQ(error, "gripper opening 50.04 mm is wider than the gripper's 50.00 mm (arm.gripper.max_opening_mm)");
   EXPECT_FALSE(gripper_pulse_us(g, -1, us, error));
   g.closed_us = 2000;  // a servo mounted the other way round
   g.open_us = 1000;
