@@ -122,4 +122,22 @@ cv::Mat render(const Scene& s, const std::vector<Poly>& polys) {
   return bgr;
 }
 
+cv::Mat coverage(const std::vector<Poly>& polys) {
+  Scene cover;
+  cover.background = 0, cover.object = 255;
+  cv::Mat c8, alpha;
+  cv::cvtColor(render(cover, polys), c8, cv::COLOR_BGR2GRAY);
+  c8.convertTo(alpha, CV_32F, 1.0 / 255);
+  return alpha;
+}
+
+cv::Mat camera(cv::Mat img, double noise_sigma, unsigned seed) {
+  cv::GaussianBlur(img, img, cv::Size(), 1.0);
+  cv::Mat noise(img.size(), CV_32F);
+  cv::RNG(seed).fill(noise, cv::RNG::NORMAL, 0, noise_sigma);
+  cv::Mat out;
+  cv::Mat(img + noise).convertTo(out, CV_8U);
+  return out;
+}
+
 }  // namespace rbx1::vision::test

@@ -31,5 +31,9 @@ struct Scene {
 };
 // Renders polygons (each filled) with 8x supersampling, then light gradient, blur and noise. 8-bit BGR.
 cv::Mat render(const Scene& s, const std::vector<Poly>& polys);
+// Coverage (0..1, CV_32F) of polygons, 8x supersampled: for composing shades and tones by hand.
+cv::Mat coverage(const std::vector<Poly>& polys);
+// A camera on a composed float grey image: 1 px of blur, then noise of noise_sigma (seeded). 8-bit grey.
+cv::Mat camera(cv::Mat img, double noise_sigma, unsigned seed);
 
 }  // namespace rbx1::vision::test
