@@ -361,6 +361,26 @@ inline void contrast_row(const uchar* gr, const uchar* br, int sign, int table, 
   }
 }
 
+// The object's own contrast where a faint shade joined its component: the median over the pixels at or above
+// half of the plain median `med`, when they are of one tone (their quartiles within a quarter of that median).
+// A cast shadow above the low threshold joins a thin part's component and pulls the plain median down (a ring
+// 20 px wide, light grey: 90 against its own pixels' 117, quartiles 116-118), which put its half level, so its
+// outline, out in the blur: the same part measured 4 % larger light grey than black. A part of several tones
+// (smarties.png's orange sweet, highlight and shading: quartiles 75-179) keeps the plain median.
+int own_level(const int* hist, int med) {
+  const int from = (med + 1) / 2;
+  int above = 0;
+  for (int i = from; i < 256; ++i) above += hist[i];
+  if (above == 0) return med;
+  auto quantile = [&](int q) {  // the q-th quarter of the pixels above `from`
+    int i = from;
+    for (int acc = 0; i < 255 && (acc += hist[i]) * 4 < q * above; ++i) {}
+    return i;
+  };
+  const int own = quantile(2);
+  return quantile(3) - quantile(1) <= own / 4 ? own : med;
+}
+
 // Soft layer of one component in one fused pass: s = (c - lo) / (hi - lo) clamped, with lo = 2 sigma and
 // hi = level - 2 sigma around the object's contrast level (median over its pixels), so noise leaves the
 // interior at 1 and the table at 0 while the anti-aliased edge keeps its covered fraction (half level =
@@ -430,17 +450,7 @@ void make_layer(const Contrast& con, const cv::Mat& labels, int label, int sign,
     recount();  // the component's median again (the caster's: above its half level)
     med = caster > 0 ? median_of(hist, half_of(caster) + 1, 255) : median();
   }
-  // The object's own contrast: the median over the component's pixels at or above half of the plain median. A
-  // cast shadow above the low threshold joins a thin part's component and pulls the plain median down (a ring
-  // 20 px wide, light grey: 90 against its own pixels' 117), which would put the half level, so the outline, out in
-  // its blurred rim: the same part measured 4 % larger light grey than black.
-  {
-    int above = 0;
-    for (int i = (med + 1) / 2; i < 256; ++i) above += hist[i];
-    int acc = 0, i = (med + 1) / 2;
-    while (i < 255 && (acc += hist[i]) * 2 < above) ++i;
-    if (above > 0) med = i;
-  }
+  med = own_level(hist, med);
   const double level = std::max<double>(med, threshold);
   layer.level = level;
   const double lo = std::min(2 * con.noise_sigma, level * 0.25), hi = std::max(level - 2 * con.noise_sigma, level * 0.75);
