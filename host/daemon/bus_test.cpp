@@ -170,6 +170,19 @@ TEST(Reply, AFinalLineHeldGoesOutWhenItsHolderEnds) {
   EXPECT_EQ(nlohmann::json::parse(lines[1].first)["error"]["code"], "pick_unverified");
 }
 
+// A job's outcome in the history is the code of the error that ended its reply (the sort's end_failed).
+TEST(Reply, KeepsTheCodeOfTheErrorThatEndedIt) {
+  Reply r([](const std::string&, bool) {}, Command::Sort);
+  EXPECT_FALSE(r.error_code());
+  r.error("estop", "the e-stop was pressed during the look");
+  r.error(ErrorCode::PickUnverified, "too late: the reply has ended");
+  EXPECT_EQ(r.error_code().value_or(""), "estop");
+  Reply ok([](const std::string&, bool) {}, Command::Sort);
+  ok.result({{"outcome", "done"}});
+  ok.error(ErrorCode::Busy, "after the result");
+  EXPECT_FALSE(ok.error_code());
+}
+
 TEST(Reply, WithoutAHolderTheFinalLineGoesOutAtOnce) {
   std::vector<std::string> lines;
   Reply r([&](const std::string& line, bool) { lines.push_back(line); }, Command::Sort);

@@ -135,10 +135,9 @@ class Machine {
                   size_t scanned, nlohmann::json& result);
   // A frame judging the pick of `name` (the check's, the sort's next scan; pick_check.cpp): capture and detect; a
   // frame with no object where the scan before found `before` >= 2 is blind (a check_blind event) and taken once
-  // more. false after reply.error: the camera's or vision's, or blind twice (unverified: the arm sent home, then
+  // more. false after reply.error: the camera's or vision's, or blind twice (the arm sent home, then
   // pick_unverified).
-  bool judging_scan(Reply& reply, vision::Scan& scan, size_t before, const std::string& name, int attempt,
-                    bool& unverified);
+  bool judging_scan(Reply& reply, vision::Scan& scan, size_t before, const std::string& name, int attempt);
   bool ready(Reply& reply);
   // The operator's jobs (operator_jobs.cpp) and the workspace calibration (workspace_jobs.cpp).
   void job_jog(Reply& reply, const Request& request);

@@ -15,16 +15,13 @@ namespace {
 bool blind(const vision::Scan& scan, size_t before) { return before >= 2 && scan.objects.empty(); }
 }  // namespace
 
-bool Machine::judging_scan(Reply& reply, vision::Scan& scan, size_t before, const std::string& name, int attempt,
-                           bool& unverified) {
-  unverified = false;
+bool Machine::judging_scan(Reply& reply, vision::Scan& scan, size_t before, const std::string& name, int attempt) {
   for (int frame = 1;; ++frame) {
     if (!capture_and_detect(reply, scan)) return false;
     if (!blind(scan, before)) return true;
     reply.event("check_blind", {{"name", name}, {"attempt", attempt}, {"frame", frame}, {"before", before}});
     if (frame == 2) break;
   }
-  unverified = true;
   if (!move_to(reply, "home", config_.arm.home)) return false;
   reply.error(ErrorCode::PickUnverified, "the check after picking \"" + name + "\" found no object in two frames " +
                                              "where the scan before found " + std::to_string(before) +
@@ -37,8 +34,7 @@ bool Machine::check_pick(Reply& reply, const std::string& name, const std::strin
   for (int attempt = 1;; ++attempt) {
     if (!move_to(reply, "check_scan", config_.arm.scan)) return false;
     vision::Scan scan;
-    bool unverified = false;
-    if (!judging_scan(reply, scan, scanned, name, attempt, unverified)) return false;
+    if (!judging_scan(reply, scan, scanned, name, attempt)) return false;
     scanned = scan.objects.size();
     // The object still within 1 cm of where it was picked from is the object itself: the pick did not take it.
     const vision::ScanObject* left = find_same(scan, name, picked.centroid_cm);

@@ -71,7 +71,19 @@ void Reply::forward(const nlohmann::json& line) {
 
 void Reply::result(nlohmann::json result) { finish(result_reply(std::move(result))); }
 
-void Reply::error(const Error& e) { finish(error_reply(e)); }
+void Reply::error(const Error& e) {
+  {
+    std::lock_guard lock(mutex_);
+    if (finished_) return;
+    error_code_ = e.code;
+  }
+  finish(error_reply(e));
+}
+
+std::optional<std::string> Reply::error_code() const {
+  std::lock_guard lock(mutex_);
+  return error_code_;
+}
 
 void Reply::finish(nlohmann::json final_line) {
   std::lock_guard lock(mutex_);

@@ -52,6 +52,8 @@ class Reply {
   // A code carried as data: a motion result's, an abort reason, the workspace fit's. Literal codes take ErrorCode.
   void error(const std::string& code, const std::string& message);
   bool finished() const { return finished_; }
+  // The code of the error that ended the reply (the first one sent); none before an error or after a result.
+  std::optional<std::string> error_code() const;
   // Keeps the final line back until release_final() (or the holder's end): a job that writes its records after a
   // failure deep in its steps (a sort's history rows) sends its final line once they are written, so a client
   // that reads them on the final line finds them.
@@ -84,10 +86,11 @@ class Reply {
   uint64_t id_;
   Bus* bus_ = nullptr;
   std::chrono::steady_clock::time_point start_;
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
   std::atomic<bool> finished_{false};
   bool holding_ = false;                  // FinalHeld
   std::optional<nlohmann::json> held_;  // the final line while held
+  std::optional<std::string> error_code_;
   std::string log_tag_;
 };
 

@@ -57,11 +57,7 @@ class SortRun {
       else if (max_picks_ && attempts_ >= max_picks_) outcome = "max_picks";
       else if (!pick_next(detections, outcome)) return end_failed();
     }
-    MotionResult homed;
-    if (!m_.move_to(reply_, "home", m_.config_.arm.home, homed)) {
-      if (!homed.code.empty()) fail_code_ = homed.code;
-      return end_failed();
-    }
+    if (!m_.move_to(reply_, "home", m_.config_.arm.home)) return end_failed();
     json s = summary(outcome);
     if (m_.history_ && job_ && !m_.history_->end_job(job_, outcome, s, error)) spdlog::error("history: {}", error);
     reply_.result(s);
@@ -89,19 +85,12 @@ class SortRun {
   bool scan(vision::Scan& detections) {
     progress("scan");
     auto t = Clock::now();
-    MotionResult moved;
-    if (!m_.move_to(reply_, "scan_pose", m_.config_.arm.scan, moved)) {
-      if (!moved.code.empty()) fail_code_ = moved.code;
-      return false;
-    }
+    if (!m_.move_to(reply_, "scan_pose", m_.config_.arm.scan)) return false;
     // The scan after a pick judges it: blind (nothing where the scan before found several) is taken again, then
     // pick_unverified, as the pick check does; the pick is never counted done on a blind frame.
-    bool unverified = false;
-    if (pending_ ? !m_.judging_scan(reply_, detections, scanned_, pending_->object.cls, pending_->row.attempt, unverified)
-                 : !m_.capture_and_detect(reply_, detections)) {
-      if (unverified) fail_code_ = code_name(ErrorCode::PickUnverified);
+    if (pending_ ? !m_.judging_scan(reply_, detections, scanned_, pending_->object.cls, pending_->row.attempt)
+                 : !m_.capture_and_detect(reply_, detections))
       return false;
-    }
     scanned_ = detections.objects.size();
     scan_ms_ = ms_since(t);
     scan_id_.reset();
@@ -267,7 +256,6 @@ class SortRun {
     if (!ok) {  // the motion failed: the attempt goes into the history as such
       pending_->row.outcome = "failed";
       pending_->row.reason = result.code;
-      fail_code_ = result.code;
       pending_->row.cycle_ms = round1(ms_since(chosen_at));
       write(pending_->row);
       pending_.reset();
@@ -293,7 +281,7 @@ class SortRun {
   }
 
   // The job failed (reply.error was sent): a pick made but not judged is written as unchecked; the job's outcome
-  // is the motion's error code (estop, link_down, timeout, ...) or "failed".
+  // is the code of that error (estop, link_down, timeout, pick_unverified, ...).
   void end_failed() {
     if (pending_) {
       pending_->row.outcome = "unchecked";
@@ -302,8 +290,9 @@ class SortRun {
       pending_.reset();
     }
     std::string error;
-    json s = summary(fail_code_);
-    if (m_.history_ && job_ && !m_.history_->end_job(job_, fail_code_, s, error)) spdlog::error("history: {}", error);
+    const std::string outcome = reply_.error_code().value_or("failed");
+    json s = summary(outcome);
+    if (m_.history_ && job_ && !m_.history_->end_job(job_, outcome, s, error)) spdlog::error("history: {}", error);
   }
 
   json summary(const std::string& outcome) const {
@@ -338,7 +327,6 @@ class SortRun {
   std::map<std::string, int> left_objects_;
   json last_skips_ = json::array();
   int picked_total_ = 0, attempts_ = 0, failed_ = 0, left_ = 0;
-  std::string fail_code_ = "failed";
 };
 
 bool Machine::open_history(std::string& error) {
